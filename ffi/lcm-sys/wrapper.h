@@ -1,0 +1,3 @@
+/* The public liblcm API: lcm.h pulls in eventlog.h. */
+#include <lcm/lcm.h>
+#include <lcm/eventlog.h>

@@ -1,0 +1,403 @@
+//! The LCM wire encoding: the [`Message`] trait and big-endian primitive codecs.
+//!
+//! Pure code, no I/O. The encoding is the one of `lcm-gen`: an 8-byte big-endian fingerprint,
+//! then the members in declaration order, big-endian, strings as `int32 length (with NUL)` +
+//! bytes + NUL, arrays without a length prefix (their size is an earlier member).
+
+/// Why encoding a message failed.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum EncodeError {
+    /// A string contains a NUL byte, which the C decoder would cut at.
+    #[error("string member contains a NUL byte at offset {offset}")]
+    StringContainsNul {
+        /// Byte offset of the first NUL.
+        offset: usize,
+    },
+    /// A string or array is longer than its length field can say.
+    #[error("length {len} does not fit the length field")]
+    LengthOverflow {
+        /// The length.
+        len: usize,
+    },
+    /// A variable-length array's size member disagrees with the array's real length.
+    #[error("size member {field} is {declared} but the array has {actual} elements")]
+    SizeMismatch {
+        /// The size member's name.
+        field: &'static str,
+        /// Its value.
+        declared: i64,
+        /// The array's length.
+        actual: usize,
+    },
+}
+
+/// Why decoding a message failed. Decoding never panics and never trusts a length further
+/// than the bytes actually present.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum DecodeError {
+    /// The first 8 bytes are not this type's fingerprint.
+    #[error("fingerprint mismatch for {type_name}: expected {expected:#018x}, found {found:#018x}")]
+    Fingerprint {
+        /// The type being decoded.
+        type_name: &'static str,
+        /// Its fingerprint.
+        expected: u64,
+        /// What the bytes carried.
+        found: u64,
+    },
+    /// The buffer ended early.
+    #[error("truncated: needed {needed} more bytes, {remaining} left")]
+    Truncated {
+        /// Bytes wanted.
+        needed: usize,
+        /// Bytes left.
+        remaining: usize,
+    },
+    /// A string or array length is negative.
+    #[error("negative length {0}")]
+    NegativeLength(i64),
+    /// A length is larger than the bytes left could hold.
+    #[error("length {len} cannot fit in the {remaining} bytes left")]
+    LengthTooLarge {
+        /// The length read.
+        len: i64,
+        /// Bytes left.
+        remaining: usize,
+    },
+    /// A boolean byte other than 0 or 1.
+    #[error("invalid boolean byte {0:#04x}")]
+    InvalidBool(u8),
+    /// A string is not valid UTF-8.
+    #[error("string is not valid UTF-8")]
+    InvalidUtf8,
+    /// A string is not NUL-terminated, or has a NUL inside.
+    #[error("string is not a single NUL-terminated run")]
+    BadStringTerminator,
+    /// Bytes remain after the message.
+    #[error("{0} trailing bytes after the message")]
+    TrailingBytes(usize),
+}
+
+/// Appends big-endian LCM primitives to a byte vector.
+#[derive(Debug)]
+pub struct Encoder<'a> {
+    buf: &'a mut Vec<u8>,
+}
+
+macro_rules! put_num {
+    ($($name:ident: $t:ty),* $(,)?) => {$(
+        #[doc = concat!("Appends a big-endian `", stringify!($t), "`.")]
+        #[inline]
+        pub fn $name(&mut self, v: $t) {
+            self.buf.extend_from_slice(&v.to_be_bytes());
+        }
+    )*};
+}
+
+impl<'a> Encoder<'a> {
+    /// Wraps a buffer; bytes are appended after its current contents.
+    pub fn new(buf: &'a mut Vec<u8>) -> Self {
+        Encoder { buf }
+    }
+
+    put_num!(put_i8: i8, put_i16: i16, put_i32: i32, put_i64: i64, put_f32: f32, put_f64: f64, put_u64: u64);
+
+    /// Appends a byte.
+    #[inline]
+    pub fn put_u8(&mut self, v: u8) {
+        self.buf.push(v);
+    }
+
+    /// Appends a boolean as 0 or 1.
+    #[inline]
+    pub fn put_bool(&mut self, v: bool) {
+        self.buf.push(v as u8);
+    }
+
+    /// Appends raw bytes (a `byte` array).
+    #[inline]
+    pub fn put_bytes(&mut self, v: &[u8]) {
+        self.buf.extend_from_slice(v);
+    }
+
+    /// Appends a string: length including the NUL, the bytes, the NUL.
+    pub fn put_str(&mut self, s: &str) -> Result<(), EncodeError> {
+        if let Some(offset) = s.bytes().position(|b| b == 0) {
+            return Err(EncodeError::StringContainsNul { offset });
+        }
+        let len = i32::try_from(s.len() + 1)
+            .map_err(|_| EncodeError::LengthOverflow { len: s.len() + 1 })?;
+        self.put_i32(len);
+        self.buf.extend_from_slice(s.as_bytes());
+        self.buf.push(0);
+        Ok(())
+    }
+
+    /// Number of bytes in the underlying buffer.
+    pub fn len(&self) -> usize {
+        self.buf.len()
+    }
+
+    /// True when the underlying buffer is empty.
+    pub fn is_empty(&self) -> bool {
+        self.buf.is_empty()
+    }
+}
+
+/// Reads big-endian LCM primitives from a byte slice, checking every length.
+#[derive(Debug, Clone)]
+pub struct Decoder<'a> {
+    buf: &'a [u8],
+}
+
+macro_rules! get_num {
+    ($($name:ident: $t:ty),* $(,)?) => {$(
+        #[doc = concat!("Reads a big-endian `", stringify!($t), "`.")]
+        #[inline]
+        pub fn $name(&mut self) -> Result<$t, DecodeError> {
+            let b = self.take(std::mem::size_of::<$t>())?;
+            Ok(<$t>::from_be_bytes(b.try_into().expect("length checked")))
+        }
+    )*};
+}
+
+impl<'a> Decoder<'a> {
+    /// Starts reading at the beginning of `buf`.
+    pub fn new(buf: &'a [u8]) -> Self {
+        Decoder { buf }
+    }
+
+    /// Bytes not read yet.
+    pub fn remaining(&self) -> usize {
+        self.buf.len()
+    }
+
+    /// Takes the next `n` bytes.
+    #[inline]
+    pub fn take(&mut self, n: usize) -> Result<&'a [u8], DecodeError> {
+        if n > self.buf.len() {
+            return Err(DecodeError::Truncated {
+                needed: n,
+                remaining: self.buf.len(),
+            });
+        }
+        let (head, tail) = self.buf.split_at(n);
+        self.buf = tail;
+        Ok(head)
+    }
+
+    get_num!(get_i8: i8, get_i16: i16, get_i32: i32, get_i64: i64, get_f32: f32, get_f64: f64, get_u64: u64);
+
+    /// Reads a byte.
+    #[inline]
+    pub fn get_u8(&mut self) -> Result<u8, DecodeError> {
+        Ok(self.take(1)?[0])
+    }
+
+    /// Reads a boolean, refusing bytes other than 0 and 1.
+    #[inline]
+    pub fn get_bool(&mut self) -> Result<bool, DecodeError> {
+        match self.get_u8()? {
+            0 => Ok(false),
+            1 => Ok(true),
+            b => Err(DecodeError::InvalidBool(b)),
+        }
+    }
+
+    /// Reads a string: length with NUL, bytes, NUL; UTF-8 checked.
+    pub fn get_string(&mut self) -> Result<String, DecodeError> {
+        let len = self.get_i32()? as i64;
+        let n = self.check_len(len, 1)?;
+        if n == 0 {
+            return Err(DecodeError::BadStringTerminator);
+        }
+        let bytes = self.take(n)?;
+        let (body, nul) = bytes.split_at(n - 1);
+        if nul[0] != 0 || body.contains(&0) {
+            return Err(DecodeError::BadStringTerminator);
+        }
+        std::str::from_utf8(body)
+            .map(str::to_owned)
+            .map_err(|_| DecodeError::InvalidUtf8)
+    }
+
+    /// Converts a decoded length member to `usize`, refusing negative lengths and lengths whose
+    /// elements (at least `min_elem_size` bytes each) cannot fit in what is left. This bounds
+    /// every allocation by the input size.
+    pub fn check_len(&self, len: i64, min_elem_size: usize) -> Result<usize, DecodeError> {
+        if len < 0 {
+            return Err(DecodeError::NegativeLength(len));
+        }
+        let n = usize::try_from(len).map_err(|_| DecodeError::LengthTooLarge {
+            len,
+            remaining: self.buf.len(),
+        })?;
+        if n.saturating_mul(min_elem_size.max(1)) > self.buf.len() {
+            return Err(DecodeError::LengthTooLarge {
+                len,
+                remaining: self.buf.len(),
+            });
+        }
+        Ok(n)
+    }
+}
+
+/// A type with an LCM encoding: what `lcm-gen` would generate for a `struct` in a `.lcm` file.
+///
+/// Implementors provide the body codec; the provided methods add and check the fingerprint.
+/// Nested types use the body codec only (LCM puts no fingerprint on nested members).
+pub trait Message: Sized {
+    /// The lcm-gen fingerprint (the first 8 bytes of every encoded message).
+    const FINGERPRINT: u64;
+    /// The fully qualified LCM type name, e.g. `stride.node_status_t`.
+    const TYPE_NAME: &'static str;
+
+    /// Size of the body in bytes (the encoded size without the fingerprint).
+    fn body_size(&self) -> usize;
+    /// Appends the body (no fingerprint).
+    fn encode_body(&self, enc: &mut Encoder<'_>) -> Result<(), EncodeError>;
+    /// Reads a body (no fingerprint).
+    fn decode_body(dec: &mut Decoder<'_>) -> Result<Self, DecodeError>;
+
+    /// The per-publisher sequence number this message carries, if its type has one. Typed
+    /// subscriptions use it to count lost messages.
+    fn sequence(&self) -> Option<i64> {
+        None
+    }
+
+    /// Full encoded size: 8 bytes of fingerprint plus the body.
+    fn encoded_size(&self) -> usize {
+        8 + self.body_size()
+    }
+
+    /// Appends fingerprint and body to `buf`.
+    fn encode_into(&self, buf: &mut Vec<u8>) -> Result<(), EncodeError> {
+        buf.reserve(self.encoded_size());
+        let mut enc = Encoder::new(buf);
+        enc.put_u64(Self::FINGERPRINT);
+        self.encode_body(&mut enc)
+    }
+
+    /// Encodes fingerprint and body into a new vector.
+    fn encode(&self) -> Result<Vec<u8>, EncodeError> {
+        let mut buf = Vec::with_capacity(self.encoded_size());
+        self.encode_into(&mut buf)?;
+        Ok(buf)
+    }
+
+    /// Decodes a whole message: checks the fingerprint, the body, and that nothing trails it.
+    fn decode(bytes: &[u8]) -> Result<Self, DecodeError> {
+        let mut dec = Decoder::new(bytes);
+        let found = dec.get_u64()?;
+        if found != Self::FINGERPRINT {
+            return Err(DecodeError::Fingerprint {
+                type_name: Self::TYPE_NAME,
+                expected: Self::FINGERPRINT,
+                found,
+            });
+        }
+        let msg = Self::decode_body(&mut dec)?;
+        match dec.remaining() {
+            0 => Ok(msg),
+            n => Err(DecodeError::TrailingBytes(n)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn primitives_are_big_endian() {
+        let mut v = Vec::new();
+        let mut e = Encoder::new(&mut v);
+        e.put_i16(-2);
+        e.put_i32(0x11223344);
+        e.put_f32(1.5);
+        e.put_bool(true);
+        e.put_str("hi").unwrap();
+        e.put_str("").unwrap();
+        assert_eq!(
+            v,
+            [
+                0xff, 0xfe, 0x11, 0x22, 0x33, 0x44, 0x3f, 0xc0, 0, 0, 1, 0, 0, 0, 3, b'h', b'i',
+                0, 0, 0, 0, 1, 0
+            ]
+        );
+        let mut d = Decoder::new(&v);
+        assert_eq!(d.get_i16().unwrap(), -2);
+        assert_eq!(d.get_i32().unwrap(), 0x11223344);
+        assert_eq!(d.get_f32().unwrap(), 1.5);
+        assert!(d.get_bool().unwrap());
+        assert_eq!(d.get_string().unwrap(), "hi");
+        assert_eq!(d.get_string().unwrap(), "");
+        assert_eq!(d.remaining(), 0);
+    }
+
+    #[test]
+    fn string_with_nul_is_refused() {
+        let mut v = Vec::new();
+        assert_eq!(
+            Encoder::new(&mut v).put_str("a\0b"),
+            Err(EncodeError::StringContainsNul { offset: 1 })
+        );
+    }
+
+    #[test]
+    fn hostile_lengths_are_errors() {
+        // Negative string length.
+        let mut d = Decoder::new(&[0xff, 0xff, 0xff, 0xff, 0]);
+        assert_eq!(d.get_string(), Err(DecodeError::NegativeLength(-1)));
+        // Huge string length with few bytes behind it.
+        let mut d = Decoder::new(&[0x7f, 0xff, 0xff, 0xff, 0]);
+        assert!(matches!(
+            d.get_string(),
+            Err(DecodeError::LengthTooLarge { .. })
+        ));
+        // Zero-length string (no NUL) is malformed.
+        let mut d = Decoder::new(&[0, 0, 0, 0]);
+        assert_eq!(d.get_string(), Err(DecodeError::BadStringTerminator));
+        // Missing terminator.
+        let mut d = Decoder::new(&[0, 0, 0, 2, b'a', b'b']);
+        assert_eq!(d.get_string(), Err(DecodeError::BadStringTerminator));
+        // Array of a billion doubles in 8 bytes.
+        let d = Decoder::new(&[0; 8]);
+        assert!(d.check_len(1_000_000_000, 8).is_err());
+        assert_eq!(d.check_len(1, 8), Ok(1));
+        // Bad boolean.
+        assert_eq!(
+            Decoder::new(&[2]).get_bool(),
+            Err(DecodeError::InvalidBool(2))
+        );
+        // Truncation.
+        assert_eq!(
+            Decoder::new(&[1, 2]).get_i32(),
+            Err(DecodeError::Truncated {
+                needed: 4,
+                remaining: 2
+            })
+        );
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn decoder_never_panics_on_garbage(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..64)) {
+            let mut d = Decoder::new(&bytes);
+            while d.remaining() > 0 {
+                if d.get_string().is_err() && d.get_u8().is_err() {
+                    break;
+                }
+            }
+        }
+
+        #[test]
+        fn strings_round_trip(s in "[^\u{0}]{0,40}") {
+            let mut v = Vec::new();
+            Encoder::new(&mut v).put_str(&s).unwrap();
+            let mut d = Decoder::new(&v);
+            proptest::prop_assert_eq!(d.get_string().unwrap(), s);
+            proptest::prop_assert_eq!(d.remaining(), 0);
+        }
+    }
+}

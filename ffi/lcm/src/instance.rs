@@ -1,0 +1,738 @@
+//! The LCM instance: creation, publishing, subscriptions and dispatch.
+
+use std::cell::{Cell, UnsafeCell};
+use std::collections::HashMap;
+use std::ffi::{c_char, c_void, CStr, CString};
+use std::marker::PhantomData;
+use std::os::fd::{AsFd, AsRawFd, BorrowedFd, RawFd};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::ptr::NonNull;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+use crate::codec::Message;
+use crate::error::{Error, Result};
+use crate::sequence::SequenceTracker;
+
+/// liblcm's default URL, used when neither a URL nor `LCM_DEFAULT_URL` is given.
+pub const DEFAULT_URL: &str = "udpm://239.255.76.67:7667?ttl=0";
+
+/// Longest channel name liblcm accepts, in bytes.
+pub const MAX_CHANNEL_LEN: usize = lcm_sys::LCM_MAX_CHANNEL_NAME_LENGTH as usize;
+
+const MAX_MESSAGE_SIZE: usize = lcm_sys::LCM_MAX_MESSAGE_SIZE as usize;
+
+/// The URL an empty URL stands for: `$LCM_DEFAULT_URL` if set and not empty, else [`DEFAULT_URL`].
+pub fn default_url() -> String {
+    match std::env::var("LCM_DEFAULT_URL") {
+        Ok(u) if !u.is_empty() => u,
+        _ => DEFAULT_URL.to_owned(),
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Counters for a whole instance (all subscriptions and publishers).
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct Stats {
+    /// Messages published successfully.
+    pub published: u64,
+    /// Publishes liblcm refused.
+    pub publish_errors: u64,
+    /// Messages delivered to a callback.
+    pub received: u64,
+    /// Messages on typed subscriptions that did not decode (dropped, callback not called).
+    pub decode_errors: u64,
+    /// Callbacks that panicked (caught; the loop went on).
+    pub handler_panics: u64,
+    /// Messages missing from a publisher's sequence on typed subscriptions.
+    pub lost: u64,
+}
+
+#[derive(Default)]
+struct Counters {
+    published: AtomicU64,
+    publish_errors: AtomicU64,
+    received: AtomicU64,
+    decode_errors: AtomicU64,
+    handler_panics: AtomicU64,
+    lost: AtomicU64,
+}
+
+impl Counters {
+    fn snapshot(&self) -> Stats {
+        Stats {
+            published: self.published.load(Relaxed),
+            publish_errors: self.publish_errors.load(Relaxed),
+            received: self.received.load(Relaxed),
+            decode_errors: self.decode_errors.load(Relaxed),
+            handler_panics: self.handler_panics.load(Relaxed),
+            lost: self.lost.load(Relaxed),
+        }
+    }
+}
+
+/// The liblcm instance, shared by the [`Lcm`] and its [`Publisher`]s; destroyed with the last.
+struct Shared {
+    ptr: NonNull<lcm_sys::lcm_t>,
+    url: String,
+    /// Serialises publishes and holds the reusable encode buffer.
+    publish: Mutex<Vec<u8>>,
+    counters: Counters,
+}
+
+// SAFETY: liblcm's functions are internally synchronised; publishing is serialised by
+// `publish`; handling only happens through `Lcm`, which is not `Sync`.
+unsafe impl Send for Shared {}
+unsafe impl Sync for Shared {}
+
+impl Drop for Shared {
+    fn drop(&mut self) {
+        // SAFETY: the pointer came from lcm_create and this is the last owner.
+        unsafe { lcm_sys::lcm_destroy(self.ptr.as_ptr()) }
+    }
+}
+
+/// A thread-safe, cloneable handle that publishes on an LCM instance.
+#[derive(Clone)]
+pub struct Publisher {
+    shared: Arc<Shared>,
+}
+
+impl std::fmt::Debug for Publisher {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Publisher")
+            .field("url", &self.shared.url)
+            .finish()
+    }
+}
+
+/// Copies a channel name into a NUL-terminated stack buffer, checking it.
+fn channel_cstr(channel: &str, buf: &mut [u8; MAX_CHANNEL_LEN + 1]) -> Result<()> {
+    let bad = |reason| Error::Channel {
+        channel: channel.to_owned(),
+        reason,
+    };
+    let b = channel.as_bytes();
+    if b.is_empty() {
+        return Err(bad("empty"));
+    }
+    if b.len() > MAX_CHANNEL_LEN {
+        return Err(bad("longer than 63 bytes"));
+    }
+    if b.contains(&0) {
+        return Err(bad("contains a NUL byte"));
+    }
+    buf[..b.len()].copy_from_slice(b);
+    buf[b.len()] = 0;
+    Ok(())
+}
+
+impl Publisher {
+    /// The URL of the instance.
+    pub fn url(&self) -> &str {
+        &self.shared.url
+    }
+
+    /// Publishes raw bytes on `channel`.
+    pub fn publish_raw(&self, channel: &str, data: &[u8]) -> Result<()> {
+        let _guard = lock(&self.shared.publish);
+        self.publish_locked(channel, data)
+    }
+
+    fn publish_locked(&self, channel: &str, data: &[u8]) -> Result<()> {
+        let mut name = [0u8; MAX_CHANNEL_LEN + 1];
+        channel_cstr(channel, &mut name)?;
+        if data.len() > MAX_MESSAGE_SIZE {
+            return Err(Error::TooLarge {
+                channel: channel.to_owned(),
+                len: data.len(),
+                max: MAX_MESSAGE_SIZE,
+            });
+        }
+        // SAFETY: name is NUL-terminated, data is valid for data.len() bytes, and liblcm copies
+        // both before returning.
+        let rc = unsafe {
+            lcm_sys::lcm_publish(
+                self.shared.ptr.as_ptr(),
+                name.as_ptr().cast(),
+                data.as_ptr().cast(),
+                data.len() as u32,
+            )
+        };
+        if rc == 0 {
+            self.shared.counters.published.fetch_add(1, Relaxed);
+            Ok(())
+        } else {
+            self.shared.counters.publish_errors.fetch_add(1, Relaxed);
+            Err(Error::Publish {
+                channel: channel.to_owned(),
+                len: data.len(),
+            })
+        }
+    }
+
+    /// Encodes `msg` and publishes it on `channel`.
+    pub fn publish<M: Message>(&self, channel: &str, msg: &M) -> Result<()> {
+        let mut buf = lock(&self.shared.publish);
+        buf.clear();
+        msg.encode_into(&mut buf).map_err(|source| Error::Encode {
+            channel: channel.to_owned(),
+            source,
+        })?;
+        let result = self.publish_locked(channel, &buf);
+        if buf.capacity() > 1 << 20 {
+            // Do not keep a huge buffer alive after one large message.
+            *buf = Vec::new();
+        }
+        result
+    }
+
+    /// Counters of the instance.
+    pub fn stats(&self) -> Stats {
+        self.shared.counters.snapshot()
+    }
+}
+
+/// What a callback learns about a received message besides its bytes.
+#[derive(Debug, Clone, Copy)]
+pub struct RecvInfo<'a> {
+    /// The channel it arrived on.
+    pub channel: &'a str,
+    /// Receive time, µs since the Unix epoch (kernel timestamp where available).
+    pub recv_utime: i64,
+    /// Size of the encoded message in bytes.
+    pub size: usize,
+}
+
+/// Counters of one subscription.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct SubscriptionStats {
+    /// Messages delivered to the callback.
+    pub received: u64,
+    /// Messages that did not decode (typed subscriptions).
+    pub decode_errors: u64,
+    /// Callback panics caught.
+    pub handler_panics: u64,
+    /// Messages missing from the publisher's sequence (typed subscriptions of types with a
+    /// sequence number): queue overflow, kernel drops, lost fragments.
+    pub lost: u64,
+}
+
+#[derive(Default)]
+struct SubCounters {
+    alive: AtomicBool,
+    received: AtomicU64,
+    decode_errors: AtomicU64,
+    handler_panics: AtomicU64,
+    lost: AtomicU64,
+}
+
+type RawHandler = Box<dyn FnMut(&RecvInfo<'_>, &[u8]) -> Outcome + Send>;
+
+/// What a callback wrapper reports back to the trampoline.
+enum Outcome {
+    Delivered,
+    DecodeError,
+}
+
+/// The user data liblcm hands back to the trampoline. Boxed, so its address is stable.
+struct SubState {
+    pattern: String,
+    counters: Arc<SubCounters>,
+    shared: Arc<Shared>,
+    /// Only touched by the trampoline, which only runs on the thread inside `Lcm::handle*`.
+    handler: UnsafeCell<RawHandler>,
+}
+
+struct Registered {
+    raw: *mut lcm_sys::lcm_subscription_t,
+    state: Box<SubState>,
+}
+
+/// Subscriptions of one instance. Unsubscribing while the instance is dispatching is deferred
+/// to the end of the dispatch (liblcm does not allow it from inside a handler).
+struct Registry {
+    shared: Arc<Shared>,
+    subs: HashMap<u64, Registered>,
+    next_id: u64,
+    handling: bool,
+    deferred: Vec<u64>,
+    closed: bool,
+}
+
+// SAFETY: the raw subscription pointers are only used under the registry's mutex, and liblcm's
+// subscription calls are internally synchronised.
+unsafe impl Send for Registry {}
+
+impl Registry {
+    fn unsubscribe_now(&mut self, id: u64) {
+        if let Some(reg) = self.subs.remove(&id) {
+            // SAFETY: raw came from lcm_subscribe on this instance and is unsubscribed once.
+            unsafe { lcm_sys::lcm_unsubscribe(self.shared.ptr.as_ptr(), reg.raw) };
+            drop(reg.state);
+        }
+    }
+
+    fn flush_deferred(&mut self) {
+        for id in std::mem::take(&mut self.deferred) {
+            self.unsubscribe_now(id);
+        }
+    }
+}
+
+/// A subscription; dropping it unsubscribes.
+///
+/// It may be dropped on any thread. The callback is never called after the drop returns.
+pub struct Subscription {
+    id: u64,
+    pattern: String,
+    raw: *mut lcm_sys::lcm_subscription_t,
+    counters: Arc<SubCounters>,
+    registry: Arc<Mutex<Registry>>,
+}
+
+// SAFETY: `raw` is only dereferenced by liblcm under the registry lock.
+unsafe impl Send for Subscription {}
+unsafe impl Sync for Subscription {}
+
+impl std::fmt::Debug for Subscription {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Subscription")
+            .field("pattern", &self.pattern)
+            .field("stats", &self.stats())
+            .finish()
+    }
+}
+
+impl Subscription {
+    /// The channel pattern this subscription was made with.
+    pub fn pattern(&self) -> &str {
+        &self.pattern
+    }
+
+    /// Counters of this subscription.
+    pub fn stats(&self) -> SubscriptionStats {
+        let c = &self.counters;
+        SubscriptionStats {
+            received: c.received.load(Relaxed),
+            decode_errors: c.decode_errors.load(Relaxed),
+            handler_panics: c.handler_panics.load(Relaxed),
+            lost: c.lost.load(Relaxed),
+        }
+    }
+
+    /// Sets how many received messages liblcm queues for this subscription before it drops the
+    /// oldest (liblcm's default is 30; 0 means unlimited).
+    pub fn set_queue_capacity(&self, capacity: usize) -> Result<()> {
+        let reg = lock(&self.registry);
+        if reg.closed {
+            return Ok(());
+        }
+        let n = i32::try_from(capacity).unwrap_or(i32::MAX);
+        // SAFETY: raw is live: it is only unsubscribed after `alive` is cleared, which happens
+        // in this subscription's drop or when the registry closes (checked above).
+        unsafe { lcm_sys::lcm_subscription_set_queue_capacity(self.raw, n) };
+        Ok(())
+    }
+
+    /// Messages currently queued for this subscription; `None` with liblcm older than 1.4.
+    pub fn queue_size(&self) -> Option<usize> {
+        let reg = lock(&self.registry);
+        if reg.closed {
+            return Some(0);
+        }
+        // SAFETY: as in set_queue_capacity.
+        let n = unsafe { lcm_sys::subscription_queue_size(self.raw) }?;
+        usize::try_from(n).ok()
+    }
+}
+
+impl Drop for Subscription {
+    fn drop(&mut self) {
+        self.counters.alive.store(false, Relaxed);
+        let mut reg = lock(&self.registry);
+        if reg.closed {
+            return;
+        }
+        if reg.handling {
+            reg.deferred.push(self.id);
+        } else {
+            reg.unsubscribe_now(self.id);
+        }
+    }
+}
+
+/// One LCM instance.
+///
+/// `Send` but not `Sync`: handling must stay on one thread at a time (a liblcm rule), so the
+/// instance can be moved to the thread that runs the loop but not shared. Use
+/// [`Lcm::publisher`] to publish from other threads.
+///
+/// ```compile_fail
+/// fn needs_sync<T: Sync>() {}
+/// needs_sync::<lcm::Lcm>();
+/// ```
+pub struct Lcm {
+    publisher: Publisher,
+    registry: Arc<Mutex<Registry>>,
+    _not_sync: PhantomData<Cell<()>>,
+}
+
+impl std::fmt::Debug for Lcm {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Lcm")
+            .field("url", &self.url())
+            .field("stats", &self.stats())
+            .finish()
+    }
+}
+
+impl Lcm {
+    /// Creates an instance for `url`; an empty URL means [`default_url`].
+    ///
+    /// Supported providers are those of the linked liblcm: `udpm://ADDR:PORT?ttl=N&recv_buf_size=N`,
+    /// `mpudpm://…`, `memq://`, `file://PATH?mode=r|w|a&speed=S`, `tcpq://HOST:PORT`.
+    pub fn new(url: &str) -> Result<Lcm> {
+        let url = if url.is_empty() {
+            default_url()
+        } else {
+            url.to_owned()
+        };
+        let curl = CString::new(url.as_str()).map_err(|_| Error::Create { url: url.clone() })?;
+        // SAFETY: curl is a valid C string; lcm_create returns NULL on failure.
+        let ptr = unsafe { lcm_sys::lcm_create(curl.as_ptr()) };
+        let ptr = NonNull::new(ptr).ok_or_else(|| Error::Create { url: url.clone() })?;
+        let shared = Arc::new(Shared {
+            ptr,
+            url,
+            publish: Mutex::new(Vec::new()),
+            counters: Counters::default(),
+        });
+        let registry = Arc::new(Mutex::new(Registry {
+            shared: shared.clone(),
+            subs: HashMap::new(),
+            next_id: 0,
+            handling: false,
+            deferred: Vec::new(),
+            closed: false,
+        }));
+        Ok(Lcm {
+            publisher: Publisher { shared },
+            registry,
+            _not_sync: PhantomData,
+        })
+    }
+
+    /// The URL of this instance.
+    pub fn url(&self) -> &str {
+        self.publisher.url()
+    }
+
+    /// A handle that publishes on this instance from any thread.
+    pub fn publisher(&self) -> Publisher {
+        self.publisher.clone()
+    }
+
+    /// Counters of the instance.
+    pub fn stats(&self) -> Stats {
+        self.publisher.stats()
+    }
+
+    /// Publishes raw bytes.
+    pub fn publish_raw(&self, channel: &str, data: &[u8]) -> Result<()> {
+        self.publisher.publish_raw(channel, data)
+    }
+
+    /// Encodes and publishes a typed message.
+    pub fn publish<M: Message>(&self, channel: &str, msg: &M) -> Result<()> {
+        self.publisher.publish(channel, msg)
+    }
+
+    fn subscribe_handler(
+        &self,
+        pattern: &str,
+        counters: Arc<SubCounters>,
+        handler: RawHandler,
+    ) -> Result<Subscription> {
+        let err = || Error::Subscribe {
+            pattern: pattern.to_owned(),
+        };
+        let cpattern = CString::new(pattern).map_err(|_| err())?;
+        counters.alive.store(true, Relaxed);
+        let state = Box::new(SubState {
+            pattern: pattern.to_owned(),
+            counters: counters.clone(),
+            shared: self.publisher.shared.clone(),
+            handler: UnsafeCell::new(handler),
+        });
+        let mut reg = lock(&self.registry);
+        let user = (&*state as *const SubState).cast_mut().cast::<c_void>();
+        // SAFETY: the pattern is a valid C string; `user` points into a Box that lives in the
+        // registry until lcm_unsubscribe has been called for this subscription.
+        let raw = unsafe {
+            lcm_sys::lcm_subscribe(
+                self.publisher.shared.ptr.as_ptr(),
+                cpattern.as_ptr(),
+                Some(trampoline),
+                user,
+            )
+        };
+        if raw.is_null() {
+            return Err(err());
+        }
+        let id = reg.next_id;
+        reg.next_id += 1;
+        reg.subs.insert(id, Registered { raw, state });
+        Ok(Subscription {
+            id,
+            pattern: pattern.to_owned(),
+            raw,
+            counters,
+            registry: self.registry.clone(),
+        })
+    }
+
+    /// Subscribes `handler` to the raw bytes of every channel matching `pattern`.
+    ///
+    /// `pattern` is a regular expression, anchored at both ends (`POSE`, `CAN_.*`, `.*`).
+    pub fn subscribe_raw<F>(&self, pattern: &str, mut handler: F) -> Result<Subscription>
+    where
+        F: FnMut(&RecvInfo<'_>, &[u8]) + Send + 'static,
+    {
+        self.subscribe_handler(
+            pattern,
+            Arc::default(),
+            Box::new(move |info, data| {
+                handler(info, data);
+                Outcome::Delivered
+            }),
+        )
+    }
+
+    /// Subscribes `handler` to decoded messages of type `M` on channels matching `pattern`.
+    ///
+    /// Messages that do not decode (wrong fingerprint, malformed) are counted, logged, and not
+    /// passed to the handler. For types carrying a sequence number, gaps are counted as lost,
+    /// per channel.
+    pub fn subscribe<M, F>(&self, pattern: &str, mut handler: F) -> Result<Subscription>
+    where
+        M: Message + 'static,
+        F: FnMut(&RecvInfo<'_>, M) + Send + 'static,
+    {
+        let mut trackers: HashMap<String, SequenceTracker> = HashMap::new();
+        let counters = Arc::new(SubCounters::default());
+        let sub_counters = counters.clone();
+        let shared = self.publisher.shared.clone();
+        self.subscribe_handler(
+            pattern,
+            counters,
+            Box::new(move |info, data| match M::decode(data) {
+                Ok(msg) => {
+                    if let Some(seq) = msg.sequence() {
+                        let tracker = match trackers.get_mut(info.channel) {
+                            Some(t) => t,
+                            None => trackers.entry(info.channel.to_owned()).or_default(),
+                        };
+                        let gap = tracker.observe(seq);
+                        if gap > 0 {
+                            sub_counters.lost.fetch_add(gap, Relaxed);
+                            shared.counters.lost.fetch_add(gap, Relaxed);
+                            tracing::debug!(channel = info.channel, gap, "messages lost");
+                        }
+                    }
+                    handler(info, msg);
+                    Outcome::Delivered
+                }
+                Err(e) => {
+                    tracing::warn!(
+                        channel = info.channel,
+                        size = info.size,
+                        r#type = M::TYPE_NAME,
+                        error = %e,
+                        "dropping a message that does not decode"
+                    );
+                    Outcome::DecodeError
+                }
+            }),
+        )
+    }
+
+    fn dispatch<T>(&self, f: impl FnOnce(*mut lcm_sys::lcm_t) -> T) -> T {
+        lock(&self.registry).handling = true;
+        let out = f(self.publisher.shared.ptr.as_ptr());
+        let mut reg = lock(&self.registry);
+        reg.handling = false;
+        reg.flush_deferred();
+        out
+    }
+
+    /// Waits for one message and dispatches it to every matching subscription.
+    pub fn handle(&self) -> Result<()> {
+        // SAFETY: the pointer is live; `Lcm` is not Sync, so no other thread handles.
+        let rc = self.dispatch(|p| unsafe { lcm_sys::lcm_handle(p) });
+        if rc == 0 {
+            Ok(())
+        } else {
+            Err(Error::Handle {
+                url: self.url().to_owned(),
+            })
+        }
+    }
+
+    /// Waits up to `timeout` for one message and dispatches it; `Ok(false)` on timeout.
+    /// Sub-millisecond timeouts are rounded up to 1 ms (liblcm's resolution); zero polls.
+    pub fn handle_timeout(&self, timeout: Duration) -> Result<bool> {
+        let mut ms = timeout.as_millis().min(i32::MAX as u128) as i32;
+        if ms == 0 && !timeout.is_zero() {
+            ms = 1;
+        }
+        // SAFETY: as in `handle`.
+        let rc = self.dispatch(|p| unsafe { lcm_sys::lcm_handle_timeout(p, ms) });
+        match rc {
+            n if n > 0 => Ok(true),
+            0 => Ok(false),
+            _ => Err(Error::Handle {
+                url: self.url().to_owned(),
+            }),
+        }
+    }
+
+    /// Dispatches every message already queued, without waiting; returns how many.
+    pub fn handle_pending(&self) -> Result<usize> {
+        let mut n = 0;
+        while self.handle_timeout(Duration::ZERO)? {
+            n += 1;
+        }
+        Ok(n)
+    }
+
+    /// The file descriptor that is readable while messages wait; for `poll`/`epoll` loops.
+    /// When it is readable, [`Lcm::handle`] will not block.
+    pub fn fileno(&self) -> RawFd {
+        // SAFETY: the pointer is live.
+        unsafe { lcm_sys::lcm_get_fileno(self.publisher.shared.ptr.as_ptr()) }
+    }
+}
+
+impl AsRawFd for Lcm {
+    fn as_raw_fd(&self) -> RawFd {
+        self.fileno()
+    }
+}
+
+impl AsFd for Lcm {
+    fn as_fd(&self) -> BorrowedFd<'_> {
+        // SAFETY: liblcm owns the descriptor for the lifetime of the instance, which outlives
+        // the borrow of `self`.
+        unsafe { BorrowedFd::borrow_raw(self.fileno()) }
+    }
+}
+
+impl Drop for Lcm {
+    fn drop(&mut self) {
+        let mut reg = lock(&self.registry);
+        let ids: Vec<u64> = reg.subs.keys().copied().collect();
+        for id in ids {
+            if let Some(r) = reg.subs.get(&id) {
+                r.state.counters.alive.store(false, Relaxed);
+            }
+            reg.unsubscribe_now(id);
+        }
+        reg.deferred.clear();
+        reg.closed = true;
+    }
+}
+
+/// The C callback: finds the subscription, runs its handler behind `catch_unwind`.
+unsafe extern "C" fn trampoline(
+    rbuf: *const lcm_sys::lcm_recv_buf_t,
+    channel: *const c_char,
+    user: *mut c_void,
+) {
+    // SAFETY: `user` is the SubState registered with this subscription, alive until it is
+    // unsubscribed, which never happens while a dispatch runs.
+    let state = unsafe { &*(user as *const SubState) };
+    if !state.counters.alive.load(Relaxed) {
+        return;
+    }
+    // SAFETY: liblcm passes a valid buffer and NUL-terminated channel for the call's duration.
+    let (rbuf, channel) = unsafe { (&*rbuf, CStr::from_ptr(channel)) };
+    let data: &[u8] = if rbuf.data.is_null() || rbuf.data_size == 0 {
+        &[]
+    } else {
+        // SAFETY: liblcm guarantees data_size readable bytes at data during the callback.
+        unsafe { std::slice::from_raw_parts(rbuf.data as *const u8, rbuf.data_size as usize) }
+    };
+    let channel_lossy;
+    let channel = match channel.to_str() {
+        Ok(s) => s,
+        Err(_) => {
+            channel_lossy = channel.to_string_lossy().into_owned();
+            &channel_lossy
+        }
+    };
+    let info = RecvInfo {
+        channel,
+        recv_utime: rbuf.recv_utime,
+        size: data.len(),
+    };
+    // SAFETY: only this trampoline touches the handler, and it runs on the single thread that
+    // is inside Lcm::handle*, never re-entrantly (liblcm refuses recursive handle calls).
+    let handler = unsafe { &mut *state.handler.get() };
+    let global = &state.shared.counters;
+    match catch_unwind(AssertUnwindSafe(|| handler(&info, data))) {
+        Ok(Outcome::Delivered) => {
+            state.counters.received.fetch_add(1, Relaxed);
+            global.received.fetch_add(1, Relaxed);
+        }
+        Ok(Outcome::DecodeError) => {
+            state.counters.decode_errors.fetch_add(1, Relaxed);
+            global.decode_errors.fetch_add(1, Relaxed);
+        }
+        Err(payload) => {
+            state.counters.handler_panics.fetch_add(1, Relaxed);
+            global.handler_panics.fetch_add(1, Relaxed);
+            let what = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "non-string panic payload".into());
+            tracing::error!(
+                channel,
+                subscription = state.pattern.as_str(),
+                panic = what.as_str(),
+                "a message handler panicked; the message was dropped and the loop goes on"
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn assert_send<T: Send>() {}
+    fn assert_sync<T: Sync>() {}
+
+    #[test]
+    fn thread_safety_of_the_types() {
+        assert_send::<Lcm>();
+        assert_send::<Publisher>();
+        assert_sync::<Publisher>();
+        assert_send::<Subscription>();
+    }
+
+    #[test]
+    fn channel_names_are_checked() {
+        let mut buf = [0u8; MAX_CHANNEL_LEN + 1];
+        assert!(channel_cstr("POSE", &mut buf).is_ok());
+        assert!(channel_cstr("", &mut buf).is_err());
+        assert!(channel_cstr(&"x".repeat(64), &mut buf).is_err());
+        assert!(channel_cstr(&"x".repeat(63), &mut buf).is_ok());
+        assert!(channel_cstr("a\0b", &mut buf).is_err());
+    }
+}
