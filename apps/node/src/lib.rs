@@ -1,0 +1,251 @@
+//! The runtime shared by every stride executable.
+//!
+//! It gives each app the same command-line flags ([`NodeArgs`]: `--lcm-url`, `--config`,
+//! `--log-level`, `--name`), `tracing` logs, TOML configuration ([`load_config`]), a
+//! [`stride.node_status_t`](stride_lcmtypes::stride::NodeStatusT) heartbeat published at 1 Hz
+//! on `STRIDE_STATUS`, and a clean shutdown on SIGINT/SIGTERM, so that an app's `main.rs`
+//! only wires its logic to the bus:
+//!
+//! ```no_run
+//! use clap::Parser;
+//! #[derive(Parser)]
+//! struct Cli {
+//!     #[command(flatten)]
+//!     node: stride_node::NodeArgs,
+//! }
+//! fn main() -> anyhow::Result<()> {
+//!     let cli = Cli::parse();
+//!     let node = stride_node::Node::start("my-app", &cli.node)?;
+//!     let _sub = node.lcm().subscribe_raw("POSE", |_, _| {})?;
+//!     node.spin()?; // handles messages until SIGINT/SIGTERM
+//!     Ok(())
+//! }
+//! ```
+
+mod config;
+mod heartbeat;
+mod stamp;
+
+pub use config::load_config;
+pub use stamp::Stamper;
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use lcm::Lcm;
+
+/// Default channel of the heartbeat.
+pub const STATUS_CHANNEL: &str = "STRIDE_STATUS";
+
+/// Command-line flags every stride executable accepts (flatten them into the app's parser).
+#[derive(Debug, Clone, clap::Args)]
+pub struct NodeArgs {
+    /// LCM URL of the bus, e.g. udpm://239.255.76.67:7667?ttl=0 (same machine only) or
+    /// udpm://239.255.76.67:7667?ttl=1 (the local network). Empty: $LCM_DEFAULT_URL, then
+    /// liblcm's default (ttl=0).
+    #[arg(long, env = "STRIDE_LCM_URL", default_value = "", value_name = "URL")]
+    pub lcm_url: String,
+
+    /// TOML configuration file of this app.
+    #[arg(long, short = 'c', value_name = "FILE")]
+    pub config: Option<PathBuf>,
+
+    /// Log filter: error, warn, info, debug, trace, or a tracing directive such as
+    /// `info,lcm=debug`. RUST_LOG, when set, takes precedence.
+    #[arg(long, default_value = "info", value_name = "FILTER")]
+    pub log_level: String,
+
+    /// Node name in logs and heartbeats (default: the app's name). Must be unique on the bus.
+    #[arg(long, value_name = "NAME")]
+    pub name: Option<String>,
+
+    /// Channel of the 1 Hz heartbeat (stride.node_status_t).
+    #[arg(long, default_value = STATUS_CHANNEL, value_name = "CHANNEL")]
+    pub status_channel: String,
+}
+
+impl Default for NodeArgs {
+    fn default() -> Self {
+        NodeArgs {
+            lcm_url: String::new(),
+            config: None,
+            log_level: "info".into(),
+            name: None,
+            status_channel: STATUS_CHANNEL.into(),
+        }
+    }
+}
+
+/// Installs the `tracing` subscriber (stderr, `RUST_LOG` or `filter`). Safe to call twice.
+pub fn init_logging(filter: &str) {
+    let env = tracing_subscriber::EnvFilter::try_from_default_env()
+        .or_else(|_| tracing_subscriber::EnvFilter::try_new(filter))
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(env)
+        .with_writer(std::io::stderr)
+        .try_init();
+}
+
+/// What a node reports about itself in its heartbeat.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Health {
+    /// One of `NodeStatusT::STATE_*`.
+    pub state: i8,
+    /// Why, in words ("" when running normally).
+    pub detail: String,
+}
+
+/// A running stride node: its LCM instance, heartbeat and shutdown flag.
+///
+/// Dropping it stops the heartbeat after publishing a final `STATE_STOPPING` status.
+pub struct Node {
+    name: String,
+    lcm: Lcm,
+    shutdown: Arc<AtomicBool>,
+    health: Arc<Mutex<Health>>,
+    heartbeat: Option<heartbeat::Heartbeat>,
+    started: Instant,
+}
+
+impl std::fmt::Debug for Node {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Node")
+            .field("name", &self.name)
+            .field("url", &self.lcm.url())
+            .finish()
+    }
+}
+
+impl Node {
+    /// Sets up logging, creates the LCM instance, installs the SIGINT/SIGTERM handlers and
+    /// starts the heartbeat. `default_name` is used unless `--name` was given.
+    pub fn start(default_name: &str, args: &NodeArgs) -> anyhow::Result<Node> {
+        init_logging(&args.log_level);
+        let name = args.name.clone().unwrap_or_else(|| default_name.to_owned());
+        let lcm = Lcm::new(&args.lcm_url)?;
+        let shutdown = Arc::new(AtomicBool::new(false));
+        for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+            // A second signal while shutting down exits at once.
+            signal_hook::flag::register_conditional_shutdown(sig, 1, shutdown.clone())
+                .context("installing the signal handler")?;
+            signal_hook::flag::register(sig, shutdown.clone())
+                .context("installing the signal handler")?;
+        }
+        let health = Arc::new(Mutex::new(Health {
+            state: stride_lcmtypes::stride::NodeStatusT::STATE_STARTING,
+            detail: String::new(),
+        }));
+        let started = Instant::now();
+        let heartbeat = heartbeat::Heartbeat::spawn(
+            lcm.publisher(),
+            args.status_channel.clone(),
+            name.clone(),
+            health.clone(),
+            started,
+            Duration::from_secs(1),
+        )?;
+        tracing::info!(node = name.as_str(), url = lcm.url(), "node started");
+        Ok(Node {
+            name,
+            lcm,
+            shutdown,
+            health,
+            heartbeat: Some(heartbeat),
+            started,
+        })
+    }
+
+    /// The node's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The node's LCM instance (subscribe and handle here).
+    pub fn lcm(&self) -> &Lcm {
+        &self.lcm
+    }
+
+    /// A thread-safe publisher on the node's bus.
+    pub fn publisher(&self) -> lcm::Publisher {
+        self.lcm.publisher()
+    }
+
+    /// Time since the node started.
+    pub fn uptime(&self) -> Duration {
+        self.started.elapsed()
+    }
+
+    /// Sets the state and detail the heartbeat reports.
+    pub fn set_health(&self, state: i8, detail: impl Into<String>) {
+        let mut h = self.health.lock().unwrap_or_else(|p| p.into_inner());
+        h.state = state;
+        h.detail = detail.into();
+    }
+
+    /// Marks the node running (the state most apps report after start-up).
+    pub fn set_running(&self) {
+        self.set_health(stride_lcmtypes::stride::NodeStatusT::STATE_RUNNING, "");
+    }
+
+    /// False once SIGINT/SIGTERM arrived or [`Node::request_shutdown`] was called.
+    pub fn running(&self) -> bool {
+        !self.shutdown.load(Ordering::Relaxed)
+    }
+
+    /// Asks the loop to stop, as a signal would.
+    pub fn request_shutdown(&self) {
+        self.shutdown.store(true, Ordering::Relaxed);
+    }
+
+    /// The flag the signal handlers set; share it with worker threads.
+    pub fn shutdown_flag(&self) -> Arc<AtomicBool> {
+        self.shutdown.clone()
+    }
+
+    /// Handles messages until shutdown is requested. Marks the node running first.
+    pub fn spin(&self) -> anyhow::Result<()> {
+        self.spin_with(Duration::from_millis(100), || Ok(()))
+    }
+
+    /// Handles messages until shutdown, calling `tick` after each message and at least every
+    /// `period`.
+    pub fn spin_with(
+        &self,
+        period: Duration,
+        mut tick: impl FnMut() -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
+        self.set_running();
+        while self.running() {
+            self.lcm.handle_timeout(period)?;
+            tick()?;
+        }
+        tracing::info!(node = self.name.as_str(), "shutting down");
+        Ok(())
+    }
+}
+
+impl Drop for Node {
+    fn drop(&mut self) {
+        self.set_health(
+            stride_lcmtypes::stride::NodeStatusT::STATE_STOPPING,
+            "shutting down",
+        );
+        if let Some(hb) = self.heartbeat.take() {
+            hb.stop();
+        }
+        let s = self.lcm.stats();
+        tracing::info!(
+            node = self.name.as_str(),
+            published = s.published,
+            received = s.received,
+            decode_errors = s.decode_errors,
+            handler_panics = s.handler_panics,
+            lost = s.lost,
+            "node stopped"
+        );
+    }
+}
