@@ -571,10 +571,13 @@ impl Lcm {
     }
 
     /// Waits for one message and dispatches it to every matching subscription.
+    ///
+    /// A signal arriving while it waits (EINTR) returns `Ok` without dispatching, so a loop can
+    /// check its shutdown flag.
     pub fn handle(&self) -> Result<()> {
         // SAFETY: the pointer is live; `Lcm` is not Sync, so no other thread handles.
         let rc = self.dispatch(|p| unsafe { lcm_sys::lcm_handle(p) });
-        if rc == 0 {
+        if rc == 0 || interrupted() {
             Ok(())
         } else {
             Err(Error::Handle {
@@ -595,6 +598,7 @@ impl Lcm {
         match rc {
             n if n > 0 => Ok(true),
             0 => Ok(false),
+            _ if interrupted() => Ok(false),
             _ => Err(Error::Handle {
                 url: self.url().to_owned(),
             }),
@@ -645,6 +649,11 @@ impl Drop for Lcm {
         reg.deferred.clear();
         reg.closed = true;
     }
+}
+
+/// True when the last failed system call was interrupted by a signal.
+fn interrupted() -> bool {
+    std::io::Error::last_os_error().kind() == std::io::ErrorKind::Interrupted
 }
 
 /// The C callback: finds the subscription, runs its handler behind `catch_unwind`.

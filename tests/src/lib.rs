@@ -1,0 +1,116 @@
+//! Helpers for the cross-process tests: the sandbox check, unique bus URLs, and child
+//! processes that are stopped when the test ends.
+
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// True inside the private network namespace `scripts/test` makes (multicast stays on its `lo`).
+///
+/// Tests that use `udpm://` return early outside it: multicast must never reach the host's
+/// real interfaces.
+pub fn in_sandbox() -> bool {
+    let ok = std::env::var_os("STRIDE_NETNS").is_some();
+    if !ok {
+        eprintln!("skipped: needs the private network namespace; run scripts/test");
+    }
+    ok
+}
+
+/// A `udpm://` URL on its own port, so tests running at once do not hear each other
+/// (liblcm 1.3.1 binds the port on every group address).
+pub fn udpm_url(port: u16) -> String {
+    format!("udpm://239.255.76.67:{port}?ttl=0&recv_buf_size=4194304")
+}
+
+/// Path of a workspace executable (built by `cargo build --workspace` before the tests run).
+pub fn bin(name: &str) -> PathBuf {
+    if let Some(p) = std::env::var_os(format!("CARGO_BIN_EXE_{name}")) {
+        return p.into();
+    }
+    let exe = std::env::current_exe().expect("test executable path");
+    let dir = exe
+        .parent()
+        .and_then(|d| d.parent())
+        .expect("target directory");
+    let p = dir.join(name);
+    assert!(
+        p.exists(),
+        "{} not found: build the workspace first (cargo build --workspace --bins)",
+        p.display()
+    );
+    p
+}
+
+/// A child process killed (SIGINT, then SIGKILL) when dropped.
+#[derive(Debug)]
+pub struct Proc {
+    child: Option<Child>,
+    name: String,
+}
+
+impl Proc {
+    /// Starts `cmd` with stdout captured and stderr inherited.
+    pub fn spawn(mut cmd: Command) -> Proc {
+        let name = format!("{:?}", cmd.get_program());
+        let child = cmd
+            .stdout(Stdio::piped())
+            .stdin(Stdio::null())
+            .spawn()
+            .unwrap_or_else(|e| panic!("starting {name}: {e}"));
+        Proc {
+            child: Some(child),
+            name,
+        }
+    }
+
+    /// Sends SIGINT and waits (up to 10 s) for the exit; returns the status and stdout.
+    pub fn interrupt(mut self) -> (std::process::ExitStatus, String) {
+        let mut child = self.child.take().expect("running");
+        // SAFETY: plain kill(2) on our own child.
+        unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            if let Some(_st) = child.try_wait().expect("wait") {
+                break;
+            }
+            if Instant::now() > deadline {
+                let _ = child.kill();
+                panic!("{} did not stop on SIGINT", self.name);
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let out = child.wait_with_output().expect("output");
+        (
+            out.status,
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+        )
+    }
+
+    /// Waits (up to `timeout`) for the process to exit by itself; returns status and stdout.
+    pub fn wait(mut self, timeout: Duration) -> (std::process::ExitStatus, String) {
+        let mut child = self.child.take().expect("running");
+        let deadline = Instant::now() + timeout;
+        while child.try_wait().expect("wait").is_none() {
+            if Instant::now() > deadline {
+                let _ = child.kill();
+                panic!("{} did not finish within {timeout:?}", self.name);
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let out = child.wait_with_output().expect("output");
+        (
+            out.status,
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+        )
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.child.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}

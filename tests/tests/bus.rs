@@ -1,0 +1,259 @@
+//! Cross-process tests over `udpm://` inside the private network namespace, and with the
+//! stock LCM tools (lcm-logger, lcm-logplayer).
+
+use std::process::Command;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use lcm::{Lcm, LogReader, LogWriter, Message};
+use stride_lcmtypes::stride::{HeaderT, PingT};
+use stride_tests::{bin, in_sandbox, udpm_url, Proc};
+
+fn ping(seq: i64, size: usize) -> PingT {
+    PingT {
+        header: HeaderT {
+            utime: 1_700_000_000_000_000 + seq,
+            sequence: seq,
+            frame: "test".into(),
+        },
+        sent_utime: seq,
+        echoed_by: String::new(),
+        payload_size: size as i32,
+        payload: (0..size).map(|i| (i * 7 + seq as usize) as u8).collect(),
+    }
+}
+
+/// Handles messages until `done` or the deadline; returns whether `done` became true.
+fn handle_until(lcm: &Lcm, timeout: Duration, mut done: impl FnMut() -> bool) -> bool {
+    let deadline = Instant::now() + timeout;
+    while Instant::now() < deadline {
+        if done() {
+            return true;
+        }
+        lcm.handle_timeout(Duration::from_millis(20)).unwrap();
+    }
+    done()
+}
+
+#[test]
+fn two_process_round_trip_with_stride_apps() {
+    if !in_sandbox() {
+        return;
+    }
+    let url = udpm_url(7711);
+    let mut echo = Command::new(bin("stride-echo"));
+    echo.args(["--lcm-url", &url, "--log-level", "warn"]);
+    let echo = Proc::spawn(echo);
+    std::thread::sleep(Duration::from_millis(300));
+    let mut ping = Command::new(bin("stride-ping"));
+    ping.args([
+        "--lcm-url", &url, "--count", "50", "--rate", "200", "--linger", "3", "--log-level", "warn",
+    ]);
+    let (st, out) = Proc::spawn(ping).wait(Duration::from_secs(30));
+    assert!(st.success(), "stride-ping failed: {out}");
+    assert!(out.contains("50 sent, 50 echoed (0 lost)"), "{out}");
+    let (st, out) = echo.interrupt();
+    assert!(st.success(), "stride-echo did not shut down cleanly: {out}");
+    assert!(out.contains("echoed 50 pings"), "{out}");
+}
+
+#[test]
+fn multi_megabyte_message_crosses_processes_intact() {
+    if !in_sandbox() {
+        return;
+    }
+    let url = udpm_url(7712);
+    let peer = {
+        let mut c = Command::new(bin("lcm-peer"));
+        c.args(["--lcm-url", &url, "echo", "--channel", "BIG", "--reply", "BIG_BACK"]);
+        Proc::spawn(c)
+    };
+    let lcm = Lcm::new(&url).unwrap();
+    let msg = ping(1, 3 * 1024 * 1024 + 12345);
+    let got: Arc<Mutex<Option<PingT>>> = Arc::default();
+    let g = got.clone();
+    let sub = lcm
+        .subscribe("BIG_BACK", move |_, m: PingT| {
+            *g.lock().unwrap() = Some(m);
+        })
+        .unwrap();
+    // The peer may not be subscribed yet: send until the echo comes back.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while got.lock().unwrap().is_none() && Instant::now() < deadline {
+        lcm.publish("BIG", &msg).unwrap();
+        handle_until(&lcm, Duration::from_millis(500), || got.lock().unwrap().is_some());
+    }
+    let back = got.lock().unwrap().take().expect("the 3 MB message never came back");
+    assert_eq!(back, msg);
+    assert_eq!(sub.stats().decode_errors, 0);
+    let (st, out) = peer.wait(Duration::from_secs(10));
+    assert!(st.success(), "{out}");
+}
+
+#[test]
+fn lcm_logger_log_is_read_by_our_crate() {
+    if !in_sandbox() {
+        return;
+    }
+    let url = udpm_url(7713);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("rec.lcmlog");
+    let logger = {
+        let mut c = Command::new("lcm-logger");
+        // liblcm 1.3.1's lcm-logger rejects the short `-l`; the long form works everywhere.
+        c.args(["-q", "-f", "-c", "REC_.*", "--flush-interval=10"])
+            .arg(format!("--lcm-url={url}"))
+            .arg(&path);
+        Proc::spawn(c)
+    };
+    let lcm = Lcm::new(&url).unwrap();
+    // Wait for the logger: its file exists once it runs; then let it subscribe.
+    let t0 = Instant::now();
+    while !path.exists() && t0.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    for i in 0..20 {
+        lcm.publish("REC_PING", &ping(i, 64)).unwrap();
+        lcm.publish_raw("REC_RAW", &[i as u8; 10]).unwrap();
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    let (st, out) = logger.interrupt();
+    assert!(st.success(), "lcm-logger: {st:?} {out}");
+    let events: Vec<_> = LogReader::open(&path).unwrap().collect();
+    let pings: Vec<PingT> = events
+        .iter()
+        .filter(|e| e.channel == "REC_PING")
+        .map(|e| PingT::decode(&e.data).expect("logged ping decodes"))
+        .collect();
+    assert_eq!(pings.len(), 20);
+    assert_eq!(pings[13], ping(13, 64));
+    assert_eq!(events.iter().filter(|e| e.channel == "REC_RAW").count(), 20);
+    assert!(events.windows(2).all(|w| w[0].number + 1 == w[1].number));
+}
+
+#[test]
+fn our_log_is_replayed_by_lcm_logplayer_into_our_subscriber() {
+    if !in_sandbox() {
+        return;
+    }
+    let url = udpm_url(7714);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ours.lcmlog");
+    let mut w = LogWriter::create(&path).unwrap();
+    // Lead-in events give lcm-logplayer's subscriber time to come up before the real ones.
+    let t0 = 1_700_000_000_000_000i64;
+    for i in 0..30 {
+        w.write(t0 + i * 10_000, "WARMUP", b"w").unwrap();
+    }
+    for i in 0..25i64 {
+        let bytes = ping(i, 100 + i as usize).encode().unwrap();
+        w.write(t0 + 300_000 + i * 1000, "REPLAY", &bytes).unwrap();
+    }
+    drop(w);
+    let lcm = Lcm::new(&url).unwrap();
+    let got = Arc::new(Mutex::new(Vec::new()));
+    let g = got.clone();
+    let sub = lcm
+        .subscribe("REPLAY", move |_, m: PingT| g.lock().unwrap().push(m))
+        .unwrap();
+    sub.set_queue_capacity(1000).unwrap();
+    let player = {
+        let mut c = Command::new("lcm-logplayer");
+        c.args(["-l", &url, "-s", "1"]).arg(&path);
+        Proc::spawn(c)
+    };
+    assert!(handle_until(&lcm, Duration::from_secs(10), || got.lock().unwrap().len() == 25));
+    let got = got.lock().unwrap();
+    for (i, m) in got.iter().enumerate() {
+        assert_eq!(*m, ping(i as i64, 100 + i));
+    }
+    assert_eq!(sub.stats().lost, 0);
+    drop(player);
+}
+
+#[test]
+fn a_subscriber_that_falls_behind_counts_what_it_lost() {
+    if !in_sandbox() {
+        return;
+    }
+    let url = udpm_url(7715);
+    let rx = Lcm::new(&url).unwrap();
+    let seqs = Arc::new(Mutex::new(Vec::new()));
+    let s = seqs.clone();
+    let sub = rx
+        .subscribe("BURST", move |_, m: PingT| s.lock().unwrap().push(m.header.sequence))
+        .unwrap();
+    sub.set_queue_capacity(5).unwrap();
+    let warm = Arc::new(AtomicU64::new(0));
+    let w = warm.clone();
+    let _warm = rx
+        .subscribe_raw("BURST_WARMUP", move |_, _| {
+            w.fetch_add(1, Ordering::Relaxed);
+        })
+        .unwrap();
+    let tx = Lcm::new(&url).unwrap();
+    // Make sure the receive side is up before the burst.
+    assert!(handle_until(&rx, Duration::from_secs(5), || {
+        tx.publish_raw("BURST_WARMUP", b"w").unwrap();
+        warm.load(Ordering::Relaxed) > 0
+    }));
+    for i in 0..200 {
+        tx.publish("BURST", &ping(i, 8)).unwrap();
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    rx.handle_pending().unwrap();
+    // A later message reveals the gap the overflow left.
+    tx.publish("BURST", &ping(200, 8)).unwrap();
+    assert!(handle_until(&rx, Duration::from_secs(5), || seqs
+        .lock()
+        .unwrap()
+        .contains(&200)));
+    let st = sub.stats();
+    let seqs = seqs.lock().unwrap();
+    let delivered = seqs.len() as u64;
+    assert!(delivered < 100, "the queue should have overflowed: {delivered} delivered");
+    assert!(st.lost > 0);
+    // Every message from the first one seen to #200 is either delivered or counted lost.
+    let first = seqs[0] as u64;
+    assert_eq!(delivered + st.lost, 201 - first, "{st:?}, {seqs:?}");
+    assert_eq!(rx.stats().lost, st.lost);
+}
+
+#[test]
+fn heartbeat_is_published_and_decodes() {
+    if !in_sandbox() {
+        return;
+    }
+    let url = udpm_url(7716);
+    let lcm = Lcm::new(&url).unwrap();
+    let got = Arc::new(Mutex::new(Vec::new()));
+    let g = got.clone();
+    let _sub = lcm
+        .subscribe(
+            "STRIDE_STATUS",
+            move |_, m: stride_lcmtypes::stride::NodeStatusT| g.lock().unwrap().push(m),
+        )
+        .unwrap();
+    let echo = {
+        let mut c = Command::new(bin("stride-echo"));
+        c.args(["--lcm-url", &url, "--name", "echo-under-test", "--log-level", "warn"]);
+        Proc::spawn(c)
+    };
+    assert!(handle_until(&lcm, Duration::from_secs(5), || got
+        .lock()
+        .unwrap()
+        .iter()
+        .any(|m| m.state == stride_lcmtypes::stride::NodeStatusT::STATE_RUNNING)));
+    let (st, _) = echo.interrupt();
+    assert!(st.success());
+    assert!(handle_until(&lcm, Duration::from_secs(5), || got
+        .lock()
+        .unwrap()
+        .iter()
+        .any(|m| m.state == stride_lcmtypes::stride::NodeStatusT::STATE_STOPPING)));
+    let got = got.lock().unwrap();
+    assert!(got.iter().all(|m| m.node == "echo-under-test" && m.pid > 0));
+}
