@@ -35,6 +35,9 @@ impl ChannelSummary {
 
 /// Names the type of a message from its first 8 bytes.
 pub fn type_of(data: &[u8]) -> String {
+    if data == b"lcm self test" {
+        return "(liblcm self-test)".into();
+    }
     let Some(fp) = data.get(..8) else {
         return "?".into();
     };

@@ -1,0 +1,65 @@
+# Shared helpers of the stride scripts; sourced, not run.
+# shellcheck shell=bash
+
+STRIDE_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+export STRIDE_ROOT
+
+# Debian packages the workspace needs to build, test and run.
+STRIDE_PACKAGES=(
+    liblcm-dev liblcm-bin liblcm-java # the C LCM library, its tools, its Java jar
+    libglib2.0-dev                    # lcm.pc requires glib's .pc files
+    libclang-dev                      # bindgen
+    pkg-config gcc libc6-dev          # finding and building against liblcm
+    iproute2 util-linux               # ip, unshare: the private test network
+)
+
+say() {
+    if [ -t 2 ]; then printf '\033[1m==> %s\033[0m\n' "$*" >&2; else printf '==> %s\n' "$*" >&2; fi
+}
+die() { printf 'error: %s\n' "$*" >&2; exit 1; }
+
+as_root() {
+    if [ "$(id -u)" = 0 ]; then "$@"
+    elif command -v sudo >/dev/null; then sudo "$@"
+    else die "need root (or sudo) to run: $*"
+    fi
+}
+
+# Installs whichever of STRIDE_PACKAGES (plus any given) are missing; does nothing otherwise.
+ensure_packages() {
+    local missing=() p
+    for p in "${STRIDE_PACKAGES[@]}" "$@"; do
+        dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
+    done
+    [ ${#missing[@]} -eq 0 ] && return 0
+    say "installing system packages: ${missing[*]}"
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+}
+
+ensure_rust() {
+    [ -d "$HOME/.cargo/bin" ] && export PATH="$HOME/.cargo/bin:$PATH"
+    command -v cargo >/dev/null || die "cargo not found: install a Rust toolchain (1.80 or newer), e.g. with rustup"
+}
+
+# Everything a fresh Debian machine needs before cargo can build the workspace.
+bootstrap() {
+    ensure_packages "$@"
+    ensure_rust
+    cd "$STRIDE_ROOT"
+}
+
+# Runs a command inside a private network namespace whose only interface is a loopback with a
+# multicast route, so LCM's UDP multicast never reaches the host's interfaces. Inside it,
+# STRIDE_NETNS=1 is set (tests that need multicast check for it).
+in_netns() {
+    if [ -n "${STRIDE_NETNS:-}" ]; then "$@"; return; fi
+    local unshare=(unshare --net)
+    [ "$(id -u)" = 0 ] || unshare=(unshare --user --map-root-user --net)
+    "${unshare[@]}" -- bash -c '
+        set -e
+        ip link set lo up
+        ip route add 224.0.0.0/4 dev lo
+        export STRIDE_NETNS=1
+        exec "$@"' stride-netns "$@"
+}
