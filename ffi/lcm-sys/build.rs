@@ -51,7 +51,10 @@ fn main() {
         .expect("bindgen failed to parse <lcm/lcm.h>; is liblcm-dev installed?");
 
     // liblcm 1.4 added lcm_subscription_get_queue_size; Debian's 1.3.1 lacks it.
-    if bindings.to_string().contains("fn lcm_subscription_get_queue_size") {
+    if bindings
+        .to_string()
+        .contains("fn lcm_subscription_get_queue_size")
+    {
         println!("cargo:rustc-cfg=lcm_has_queue_size");
     }
 

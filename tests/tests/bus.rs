@@ -48,7 +48,16 @@ fn two_process_round_trip_with_stride_apps() {
     std::thread::sleep(Duration::from_millis(300));
     let mut ping = Command::new(bin("stride-ping"));
     ping.args([
-        "--lcm-url", &url, "--count", "50", "--rate", "200", "--linger", "3", "--log-level", "warn",
+        "--lcm-url",
+        &url,
+        "--count",
+        "50",
+        "--rate",
+        "200",
+        "--linger",
+        "3",
+        "--log-level",
+        "warn",
     ]);
     let (st, out) = Proc::spawn(ping).wait(Duration::from_secs(30));
     assert!(st.success(), "stride-ping failed: {out}");
@@ -66,7 +75,15 @@ fn multi_megabyte_message_crosses_processes_intact() {
     let url = udpm_url(7712);
     let peer = {
         let mut c = Command::new(bin("lcm-peer"));
-        c.args(["--lcm-url", &url, "echo", "--channel", "BIG", "--reply", "BIG_BACK"]);
+        c.args([
+            "--lcm-url",
+            &url,
+            "echo",
+            "--channel",
+            "BIG",
+            "--reply",
+            "BIG_BACK",
+        ]);
         Proc::spawn(c)
     };
     let lcm = Lcm::new(&url).unwrap();
@@ -82,9 +99,15 @@ fn multi_megabyte_message_crosses_processes_intact() {
     let deadline = Instant::now() + Duration::from_secs(20);
     while got.lock().unwrap().is_none() && Instant::now() < deadline {
         lcm.publish("BIG", &msg).unwrap();
-        handle_until(&lcm, Duration::from_millis(500), || got.lock().unwrap().is_some());
+        handle_until(&lcm, Duration::from_millis(500), || {
+            got.lock().unwrap().is_some()
+        });
     }
-    let back = got.lock().unwrap().take().expect("the 3 MB message never came back");
+    let back = got
+        .lock()
+        .unwrap()
+        .take()
+        .expect("the 3 MB message never came back");
     assert_eq!(back, msg);
     assert_eq!(sub.stats().decode_errors, 0);
     let (st, out) = peer.wait(Duration::from_secs(10));
@@ -165,7 +188,11 @@ fn our_log_is_replayed_by_lcm_logplayer_into_our_subscriber() {
         c.args(["-l", &url, "-s", "1"]).arg(&path);
         Proc::spawn(c)
     };
-    assert!(handle_until(&lcm, Duration::from_secs(10), || got.lock().unwrap().len() == 25));
+    assert!(handle_until(&lcm, Duration::from_secs(10), || got
+        .lock()
+        .unwrap()
+        .len()
+        == 25));
     let got = got.lock().unwrap();
     for (i, m) in got.iter().enumerate() {
         assert_eq!(*m, ping(i as i64, 100 + i));
@@ -184,7 +211,9 @@ fn a_subscriber_that_falls_behind_counts_what_it_lost() {
     let seqs = Arc::new(Mutex::new(Vec::new()));
     let s = seqs.clone();
     let sub = rx
-        .subscribe("BURST", move |_, m: PingT| s.lock().unwrap().push(m.header.sequence))
+        .subscribe("BURST", move |_, m: PingT| {
+            s.lock().unwrap().push(m.header.sequence)
+        })
         .unwrap();
     sub.set_queue_capacity(5).unwrap();
     let warm = Arc::new(AtomicU64::new(0));
@@ -214,7 +243,10 @@ fn a_subscriber_that_falls_behind_counts_what_it_lost() {
     let st = sub.stats();
     let seqs = seqs.lock().unwrap();
     let delivered = seqs.len() as u64;
-    assert!(delivered < 100, "the queue should have overflowed: {delivered} delivered");
+    assert!(
+        delivered < 100,
+        "the queue should have overflowed: {delivered} delivered"
+    );
     assert!(st.lost > 0);
     // Every message from the first one seen to #200 is either delivered or counted lost.
     let first = seqs[0] as u64;
@@ -239,21 +271,32 @@ fn heartbeat_is_published_and_decodes() {
         .unwrap();
     let echo = {
         let mut c = Command::new(bin("stride-echo"));
-        c.args(["--lcm-url", &url, "--name", "echo-under-test", "--log-level", "warn"]);
+        c.args([
+            "--lcm-url",
+            &url,
+            "--name",
+            "echo-under-test",
+            "--log-level",
+            "warn",
+        ]);
         Proc::spawn(c)
     };
     assert!(handle_until(&lcm, Duration::from_secs(5), || got
         .lock()
         .unwrap()
         .iter()
-        .any(|m| m.state == stride_lcmtypes::stride::NodeStatusT::STATE_RUNNING)));
+        .any(
+            |m| m.state == stride_lcmtypes::stride::NodeStatusT::STATE_RUNNING
+        )));
     let (st, _) = echo.interrupt();
     assert!(st.success());
     assert!(handle_until(&lcm, Duration::from_secs(5), || got
         .lock()
         .unwrap()
         .iter()
-        .any(|m| m.state == stride_lcmtypes::stride::NodeStatusT::STATE_STOPPING)));
+        .any(
+            |m| m.state == stride_lcmtypes::stride::NodeStatusT::STATE_STOPPING
+        )));
     let got = got.lock().unwrap();
     assert!(got.iter().all(|m| m.node == "echo-under-test" && m.pid > 0));
 }

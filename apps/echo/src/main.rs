@@ -43,7 +43,11 @@ fn main() -> anyhow::Result<()> {
             Err(err) => tracing::warn!(error = %err, "could not echo"),
         }
     })?;
-    tracing::info!(channel = cli.channel.as_str(), reply = cli.reply_channel.as_str(), "echoing");
+    tracing::info!(
+        channel = cli.channel.as_str(),
+        reply = cli.reply_channel.as_str(),
+        "echoing"
+    );
     let count = cli.count;
     node.spin_with(std::time::Duration::from_millis(100), || {
         if count > 0 && echoed.load(Ordering::Relaxed) >= count {

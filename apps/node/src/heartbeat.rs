@@ -27,7 +27,11 @@ struct Beat {
 
 impl Beat {
     fn publish(&mut self) {
-        let health = self.health.lock().unwrap_or_else(|p| p.into_inner()).clone();
+        let health = self
+            .health
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone();
         let s = self.publisher.stats();
         let msg = NodeStatusT {
             header: self.stamper.stamp(),

@@ -46,20 +46,32 @@ fn main() -> anyhow::Result<()> {
     let node = Node::start("stride-ping", &cli.node)?;
     let rtts = Arc::new(Mutex::new(Vec::new()));
     let r = rtts.clone();
-    let _sub = node.lcm().subscribe(&cli.reply_channel, move |info, m: PingT| {
-        if m.echoed_by.is_empty() {
-            return;
-        }
-        let rtt = (info.recv_utime - m.sent_utime).max(0) as u64;
-        tracing::debug!(seq = m.header.sequence, by = m.echoed_by.as_str(), rtt_us = rtt, "echo");
-        r.lock().unwrap().push(Duration::from_micros(rtt));
-    })?;
+    let _sub = node
+        .lcm()
+        .subscribe(&cli.reply_channel, move |info, m: PingT| {
+            if m.echoed_by.is_empty() {
+                return;
+            }
+            let rtt = (info.recv_utime - m.sent_utime).max(0) as u64;
+            tracing::debug!(
+                seq = m.header.sequence,
+                by = m.echoed_by.as_str(),
+                rtt_us = rtt,
+                "echo"
+            );
+            r.lock().unwrap().push(Duration::from_micros(rtt));
+        })?;
     let period = Duration::from_secs_f64(1.0 / cli.rate);
     let mut stamper = Stamper::new("");
     let mut sent = 0u64;
     let mut next = Instant::now();
     node.set_running();
-    tracing::info!(channel = cli.channel.as_str(), rate = cli.rate, size = cli.size, "pinging");
+    tracing::info!(
+        channel = cli.channel.as_str(),
+        rate = cli.rate,
+        size = cli.size,
+        "pinging"
+    );
     while node.running() && (cli.count == 0 || sent < cli.count) {
         let now = Instant::now();
         if now >= next {
@@ -88,7 +100,10 @@ fn main() -> anyhow::Result<()> {
     let summary = stride_ping::summarize(sent, rtts.lock().unwrap().clone());
     println!("stride-ping: {summary}");
     if summary.received == 0 {
-        bail!("no echo came back on {} (is stride-echo running on this bus?)", cli.reply_channel);
+        bail!(
+            "no echo came back on {} (is stride-echo running on this bus?)",
+            cli.reply_channel
+        );
     }
     Ok(())
 }

@@ -3,7 +3,11 @@
 //!
 //! Everything here is `unsafe`; use the `lcm` crate for a safe interface.
 #![allow(non_upper_case_globals, non_camel_case_types, non_snake_case)]
-#![allow(missing_docs, rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
+#![allow(
+    missing_docs,
+    rustdoc::broken_intra_doc_links,
+    rustdoc::invalid_html_tags
+)]
 #![allow(clippy::all)]
 
 include!(concat!(env!("OUT_DIR"), "/bindings.rs"));
@@ -18,7 +22,8 @@ pub const HAS_QUEUE_SIZE: bool = cfg!(lcm_has_queue_size);
 pub unsafe fn subscription_queue_size(sub: *mut lcm_subscription_t) -> Option<i32> {
     #[cfg(lcm_has_queue_size)]
     {
-        Some(lcm_subscription_get_queue_size(sub))
+        // SAFETY: forwarded from the caller's contract.
+        Some(unsafe { lcm_subscription_get_queue_size(sub) })
     }
     #[cfg(not(lcm_has_queue_size))]
     {

@@ -4,9 +4,12 @@
  * and print the same result line, so scripts/bench can run them side by side.
  *
  *   lcm_perf pong   URL                      echo PERF_PING back on PERF_PONG until killed
- *   lcm_perf ping   URL SIZE COUNT           COUNT round trips of SIZE-byte messages
+ *   lcm_perf ping   URL SIZE COUNT [FILE]    COUNT round trips of SIZE-byte messages (each
+ *                                            round trip in ns appended to FILE)
  *   lcm_perf sink   URL                      receive PERF_DATA, acknowledge on PERF_ACK
  *   lcm_perf source URL SIZE COUNT WINDOW    send COUNT messages, at most WINDOW unacknowledged
+ *   lcm_perf loop   URL SIZE COUNT           publish and handle COUNT messages in one process
+ *                                            (memq://: the library's own cost per message)
  */
 #include <lcm/lcm.h>
 #include <stdint.h>
@@ -130,6 +133,13 @@ int main(int argc, char **argv) {
             }
             if (st.got) rtt[n++] = now_ns() - t0; else lost++;
         }
+        if (argc >= 6) {
+            FILE *f = fopen(argv[5], "a");
+            if (f) {
+                for (int i = 0; i < n; i++) fprintf(f, "%lld\n", (long long)rtt[i]);
+                fclose(f);
+            }
+        }
         qsort(rtt, n, sizeof(int64_t), cmp_i64);
         double sum = 0;
         for (int i = 0; i < n; i++) sum += rtt[i];
@@ -169,6 +179,16 @@ int main(int argc, char **argv) {
         printf("impl=c mode=throughput size=%d count=%llu lost=%llu msgs_per_s=%.1f mb_per_s=%.2f\n",
                size, (unsigned long long)count, (unsigned long long)(count - st.acked),
                st.acked / secs, st.acked * (double)size / secs / 1e6);
+    } else if (!strcmp(mode, "loop") && argc >= 5) {
+        int size = atoi(argv[3]), count = atoi(argv[4]);
+        uint8_t *buf = calloc(1, size > 8 ? size : 8);
+        struct sink_state st = { lcm, 0, 0, (uint64_t)-1 };
+        lcm_subscribe(lcm, "PERF_DATA", on_data, &st);
+        for (int i = 0; i < count; i++) {
+            lcm_publish(lcm, "PERF_DATA", buf, size);
+            lcm_handle(lcm);
+        }
+        printf("impl=c mode=loop size=%d count=%d received=%llu\n", size, count, (unsigned long long)st.count);
     } else {
         fprintf(stderr, "bad arguments\n");
         return 2;

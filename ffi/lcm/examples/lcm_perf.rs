@@ -5,9 +5,12 @@
 //!
 //! ```text
 //! lcm_perf pong   URL                      echo PERF_PING back on PERF_PONG until killed
-//! lcm_perf ping   URL SIZE COUNT           COUNT round trips of SIZE-byte messages
+//! lcm_perf ping   URL SIZE COUNT [FILE]    COUNT round trips of SIZE-byte messages (each
+//!                                          round trip in ns appended to FILE)
 //! lcm_perf sink   URL                      receive PERF_DATA, acknowledge on PERF_ACK
 //! lcm_perf source URL SIZE COUNT WINDOW    send COUNT messages, at most WINDOW unacknowledged
+//! lcm_perf loop   URL SIZE COUNT           publish and handle COUNT messages in one process
+//!                                          (memq://: the library's own cost per message)
 //! ```
 
 use std::cell::Cell;
@@ -62,7 +65,11 @@ fn main() {
             let s = lcm
                 .subscribe_raw("PERF_DATA", move |_, data| {
                     let n = c.fetch_add(1, Relaxed) + 1;
-                    let total = if data.len() >= 16 { get_u64(&data[8..]) } else { 0 };
+                    let total = if data.len() >= 16 {
+                        get_u64(&data[8..])
+                    } else {
+                        0
+                    };
                     if n % a.load(Relaxed) == 0 || n == total {
                         let _ = p.publish_raw("PERF_ACK", &n.to_ne_bytes());
                     }
@@ -132,6 +139,19 @@ fn main() {
                     lost += 1;
                 }
             }
+            if let Some(path) = args.get(5) {
+                use std::io::Write;
+                let mut out = String::with_capacity(rtt.len() * 8);
+                for r in &rtt {
+                    out += &format!("{r}\n");
+                }
+                let mut f = std::fs::OpenOptions::new()
+                    .create(true)
+                    .append(true)
+                    .open(path)
+                    .expect("samples file");
+                f.write_all(out.as_bytes()).expect("write samples");
+            }
             rtt.sort_unstable();
             let mean = rtt.iter().sum::<u64>() as f64 / rtt.len().max(1) as f64;
             println!(
@@ -164,7 +184,8 @@ fn main() {
                 if seen.load(Relaxed) == 1 {
                     break;
                 }
-                lcm.publish_raw("PERF_RESET", &ack_every.to_ne_bytes()).unwrap();
+                lcm.publish_raw("PERF_RESET", &ack_every.to_ne_bytes())
+                    .unwrap();
                 let _ = lcm.handle_timeout(Duration::from_millis(100));
             }
             if seen.load(Relaxed) == 0 {
@@ -196,6 +217,27 @@ fn main() {
                 count - acked,
                 acked as f64 / secs,
                 acked as f64 * size as f64 / secs / 1e6
+            );
+        }
+        "loop" if args.len() >= 5 => {
+            let size = arg(3) as usize;
+            let count = arg(4);
+            let buf = vec![0u8; size.max(8)];
+            let received = Arc::new(AtomicU64::new(0));
+            let r = received.clone();
+            let _s = lcm
+                .subscribe_raw("PERF_DATA", move |_, data| {
+                    r.fetch_add(1, Relaxed);
+                    std::hint::black_box(data);
+                })
+                .unwrap();
+            for _ in 0..count {
+                lcm.publish_raw("PERF_DATA", &buf[..size]).unwrap();
+                lcm.handle().unwrap();
+            }
+            println!(
+                "impl=rust mode=loop size={size} count={count} received={}",
+                received.load(Relaxed)
             );
         }
         _ => {

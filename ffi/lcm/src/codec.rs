@@ -36,7 +36,9 @@ pub enum EncodeError {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum DecodeError {
     /// The first 8 bytes are not this type's fingerprint.
-    #[error("fingerprint mismatch for {type_name}: expected {expected:#018x}, found {found:#018x}")]
+    #[error(
+        "fingerprint mismatch for {type_name}: expected {expected:#018x}, found {found:#018x}"
+    )]
     Fingerprint {
         /// The type being decoded.
         type_name: &'static str,
@@ -321,8 +323,8 @@ mod tests {
         assert_eq!(
             v,
             [
-                0xff, 0xfe, 0x11, 0x22, 0x33, 0x44, 0x3f, 0xc0, 0, 0, 1, 0, 0, 0, 3, b'h', b'i',
-                0, 0, 0, 0, 1, 0
+                0xff, 0xfe, 0x11, 0x22, 0x33, 0x44, 0x3f, 0xc0, 0, 0, 1, 0, 0, 0, 3, b'h', b'i', 0,
+                0, 0, 0, 1, 0
             ]
         );
         let mut d = Decoder::new(&v);

@@ -71,7 +71,9 @@ pub struct LogReader {
 
 impl std::fmt::Debug for LogReader {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("LogReader").field("path", &self.h.path).finish()
+        f.debug_struct("LogReader")
+            .field("path", &self.h.path)
+            .finish()
     }
 }
 
@@ -142,7 +144,9 @@ pub struct LogWriter {
 
 impl std::fmt::Debug for LogWriter {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("LogWriter").field("path", &self.h.path).finish()
+        f.debug_struct("LogWriter")
+            .field("path", &self.h.path)
+            .finish()
     }
 }
 

@@ -7,7 +7,9 @@ use std::marker::PhantomData;
 use std::os::fd::{AsFd, AsRawFd, BorrowedFd, RawFd};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::ptr::NonNull;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
+use std::sync::atomic::{
+    AtomicBool, AtomicU64, Ordering::Acquire, Ordering::Relaxed, Ordering::Release,
+};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
@@ -123,10 +125,14 @@ fn channel_cstr(channel: &str, buf: &mut [u8; MAX_CHANNEL_LEN + 1]) -> Result<()
     if b.len() > MAX_CHANNEL_LEN {
         return Err(bad("longer than 63 bytes"));
     }
-    if b.contains(&0) {
+    let mut nul = false;
+    for (d, &c) in buf.iter_mut().zip(b) {
+        nul |= c == 0;
+        *d = c;
+    }
+    if nul {
         return Err(bad("contains a NUL byte"));
     }
-    buf[..b.len()].copy_from_slice(b);
     buf[b.len()] = 0;
     Ok(())
 }
@@ -246,6 +252,8 @@ struct SubState {
     shared: Arc<Shared>,
     /// Only touched by the trampoline, which only runs on the thread inside `Lcm::handle*`.
     handler: UnsafeCell<RawHandler>,
+    /// The last channel name seen, already checked as UTF-8 (same thread rule as `handler`).
+    last_channel: UnsafeCell<String>,
 }
 
 struct Registered {
@@ -253,13 +261,13 @@ struct Registered {
     state: Box<SubState>,
 }
 
-/// Subscriptions of one instance. Unsubscribing while the instance is dispatching is deferred
-/// to the end of the dispatch (liblcm does not allow it from inside a handler).
+/// Subscriptions of one instance. A dropped [`Subscription`] is only marked here; the thread
+/// that handles unsubscribes it from liblcm between two dispatches, because liblcm does not
+/// allow unsubscribing from inside a handler or while another thread dispatches.
 struct Registry {
     shared: Arc<Shared>,
     subs: HashMap<u64, Registered>,
     next_id: u64,
-    handling: bool,
     deferred: Vec<u64>,
     closed: bool,
 }
@@ -286,13 +294,16 @@ impl Registry {
 
 /// A subscription; dropping it unsubscribes.
 ///
-/// It may be dropped on any thread. The callback is never called after the drop returns.
+/// It may be dropped on any thread, even inside its own callback. The callback is never called
+/// after the drop returns; liblcm forgets the subscription at the next `handle*` call (or when
+/// the [`Lcm`] is dropped).
 pub struct Subscription {
     id: u64,
     pattern: String,
     raw: *mut lcm_sys::lcm_subscription_t,
     counters: Arc<SubCounters>,
     registry: Arc<Mutex<Registry>>,
+    pending: Arc<AtomicBool>,
 }
 
 // SAFETY: `raw` is only dereferenced by liblcm under the registry lock.
@@ -353,16 +364,14 @@ impl Subscription {
 
 impl Drop for Subscription {
     fn drop(&mut self) {
+        // From here on the trampoline skips this subscription's callback.
         self.counters.alive.store(false, Relaxed);
         let mut reg = lock(&self.registry);
         if reg.closed {
             return;
         }
-        if reg.handling {
-            reg.deferred.push(self.id);
-        } else {
-            reg.unsubscribe_now(self.id);
-        }
+        reg.deferred.push(self.id);
+        self.pending.store(true, Release);
     }
 }
 
@@ -379,6 +388,8 @@ impl Drop for Subscription {
 pub struct Lcm {
     publisher: Publisher,
     registry: Arc<Mutex<Registry>>,
+    /// Set when a dropped subscription waits to be unsubscribed.
+    pending: Arc<AtomicBool>,
     _not_sync: PhantomData<Cell<()>>,
 }
 
@@ -416,13 +427,13 @@ impl Lcm {
             shared: shared.clone(),
             subs: HashMap::new(),
             next_id: 0,
-            handling: false,
             deferred: Vec::new(),
             closed: false,
         }));
         Ok(Lcm {
             publisher: Publisher { shared },
             registry,
+            pending: Arc::new(AtomicBool::new(false)),
             _not_sync: PhantomData,
         })
     }
@@ -468,6 +479,7 @@ impl Lcm {
             counters: counters.clone(),
             shared: self.publisher.shared.clone(),
             handler: UnsafeCell::new(handler),
+            last_channel: UnsafeCell::new(String::new()),
         });
         let mut reg = lock(&self.registry);
         let user = (&*state as *const SubState).cast_mut().cast::<c_void>();
@@ -493,6 +505,7 @@ impl Lcm {
             raw,
             counters,
             registry: self.registry.clone(),
+            pending: self.pending.clone(),
         })
     }
 
@@ -561,12 +574,18 @@ impl Lcm {
         )
     }
 
+    /// Unsubscribes the subscriptions dropped since the last call. Only the handling thread
+    /// calls it, between dispatches.
+    fn flush_dropped(&self) {
+        if self.pending.load(Relaxed) && self.pending.swap(false, Acquire) {
+            lock(&self.registry).flush_deferred();
+        }
+    }
+
     fn dispatch<T>(&self, f: impl FnOnce(*mut lcm_sys::lcm_t) -> T) -> T {
-        lock(&self.registry).handling = true;
+        self.flush_dropped();
         let out = f(self.publisher.shared.ptr.as_ptr());
-        let mut reg = lock(&self.registry);
-        reg.handling = false;
-        reg.flush_deferred();
+        self.flush_dropped();
         out
     }
 
@@ -676,14 +695,13 @@ unsafe extern "C" fn trampoline(
         // SAFETY: liblcm guarantees data_size readable bytes at data during the callback.
         unsafe { std::slice::from_raw_parts(rbuf.data as *const u8, rbuf.data_size as usize) }
     };
-    let channel_lossy;
-    let channel = match channel.to_str() {
-        Ok(s) => s,
-        Err(_) => {
-            channel_lossy = channel.to_string_lossy().into_owned();
-            &channel_lossy
-        }
-    };
+    // SAFETY: only the handling thread touches `last_channel` (see `handler` below).
+    let last = unsafe { &mut *state.last_channel.get() };
+    let bytes = channel.to_bytes();
+    if last.as_bytes() != bytes {
+        *last = String::from_utf8_lossy(bytes).into_owned();
+    }
+    let channel = last.as_str();
     let info = RecvInfo {
         channel,
         recv_utime: rbuf.recv_utime,

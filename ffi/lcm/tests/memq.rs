@@ -168,8 +168,14 @@ fn sequence_gaps_are_counted_as_lost() {
     let lcm = Lcm::new("memq://").unwrap();
     let sub = lcm.subscribe("S", |_, _m: Counter| {}).unwrap();
     for seq in [0, 1, 4, 5, 9] {
-        lcm.publish("S", &Counter { seq, text: "".into() })
-            .unwrap();
+        lcm.publish(
+            "S",
+            &Counter {
+                seq,
+                text: "".into(),
+            },
+        )
+        .unwrap();
     }
     lcm.handle_pending().unwrap();
     assert_eq!(sub.stats().lost, 2 + 3);
@@ -292,7 +298,11 @@ fn log_write_then_read() {
     let mut w = LogWriter::create(&path).unwrap();
     for i in 0..10i64 {
         let n = w
-            .write(1_000_000 + i, &format!("CH{}", i % 3), &vec![i as u8; i as usize * 100])
+            .write(
+                1_000_000 + i,
+                &format!("CH{}", i % 3),
+                &vec![i as u8; i as usize * 100],
+            )
             .unwrap();
         assert_eq!(n, i);
     }
@@ -315,7 +325,14 @@ fn file_provider_records_and_replays() {
     {
         let w = Lcm::new(&format!("file://{}?mode=w", path.display())).unwrap();
         for seq in 0..3 {
-            w.publish("REC", &Counter { seq, text: "r".into() }).unwrap();
+            w.publish(
+                "REC",
+                &Counter {
+                    seq,
+                    text: "r".into(),
+                },
+            )
+            .unwrap();
         }
     }
     let r = Lcm::new(&format!("file://{}?speed=0", path.display())).unwrap();
