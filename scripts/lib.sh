@@ -11,6 +11,7 @@ STRIDE_PACKAGES=(
     libclang-dev                      # bindgen
     pkg-config gcc libc6-dev          # finding and building against liblcm
     iproute2 util-linux               # ip, unshare: the private test network
+    python3 python3-pip               # bench tables; the newer-liblcm check in scripts/test
 )
 
 say() {

@@ -3,6 +3,9 @@
 //! Debian's `lcm.pc` requires glib's `.pc` files (`libglib2.0-dev`) although the headers do
 //! not need glib; when pkg-config fails for that reason we fall back to plain `-llcm` so a
 //! machine with only `liblcm-dev` still builds.
+//!
+//! `LCM_INCLUDE_DIR` and `LCM_LIB_DIR` point the build at another liblcm (a source build, or the
+//! SDK inside the `lcm` Python wheel, which ships no `lcm.pc`); pkg-config is then skipped.
 
 use std::env;
 use std::path::PathBuf;
@@ -10,23 +13,31 @@ use std::path::PathBuf;
 fn main() {
     println!("cargo:rerun-if-changed=wrapper.h");
     println!("cargo:rerun-if-env-changed=LCM_INCLUDE_DIR");
+    println!("cargo:rerun-if-env-changed=LCM_LIB_DIR");
     println!("cargo:rustc-check-cfg=cfg(lcm_has_queue_size)");
 
     let mut include_paths: Vec<PathBuf> = Vec::new();
-    match pkg_config::Config::new()
-        .atleast_version("1.3.1")
-        .probe("lcm")
-    {
-        Ok(lib) => include_paths.extend(lib.include_paths),
-        Err(e) => {
-            println!(
-                "cargo:warning=pkg-config could not resolve lcm ({e}); linking with -llcm instead"
-            );
-            println!("cargo:rustc-link-lib=lcm");
+    let include_dir = env::var_os("LCM_INCLUDE_DIR").map(PathBuf::from);
+    let lib_dir = env::var_os("LCM_LIB_DIR").map(PathBuf::from);
+    if include_dir.is_some() || lib_dir.is_some() {
+        include_paths.extend(include_dir);
+        if let Some(dir) = lib_dir {
+            println!("cargo:rustc-link-search=native={}", dir.display());
         }
-    }
-    if let Ok(dir) = env::var("LCM_INCLUDE_DIR") {
-        include_paths.push(PathBuf::from(dir));
+        println!("cargo:rustc-link-lib=lcm");
+    } else {
+        match pkg_config::Config::new()
+            .atleast_version("1.3.1")
+            .probe("lcm")
+        {
+            Ok(lib) => include_paths.extend(lib.include_paths),
+            Err(e) => {
+                println!(
+                    "cargo:warning=pkg-config could not resolve lcm ({e}); linking with -llcm instead"
+                );
+                println!("cargo:rustc-link-lib=lcm");
+            }
+        }
     }
 
     let mut builder = bindgen::Builder::default()

@@ -350,7 +350,8 @@ impl Subscription {
         Ok(())
     }
 
-    /// Messages currently queued for this subscription; `None` with liblcm older than 1.4.
+    /// Messages liblcm currently queues for this subscription (udpm and other network
+    /// providers; `memq://` keeps its own queue and reports 0); `None` with liblcm older than 1.4.
     pub fn queue_size(&self) -> Option<usize> {
         let reg = lock(&self.registry);
         if reg.closed {

@@ -344,3 +344,21 @@ fn file_provider_records_and_replays() {
     while r.handle().is_ok() {}
     assert_eq!(*got.lock().unwrap(), vec![0, 1, 2]);
 }
+
+#[test]
+fn queue_capacity_and_size() {
+    let lcm = Lcm::new("memq://").unwrap();
+    let sub = lcm.subscribe_raw("Q", |_, _| {}).unwrap();
+    sub.set_queue_capacity(100).unwrap();
+    for _ in 0..3 {
+        lcm.publish_raw("Q", b"x").unwrap();
+    }
+    // liblcm 1.4 and newer can tell the queue size (memq:// keeps its own queue and says 0);
+    // Debian's 1.3.1 cannot.
+    if lcm::HAS_QUEUE_SIZE {
+        assert!(sub.queue_size().is_some());
+    } else {
+        assert_eq!(sub.queue_size(), None);
+    }
+    assert_eq!(lcm.handle_pending().unwrap(), 3);
+}
