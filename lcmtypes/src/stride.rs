@@ -280,4 +280,34 @@ mod tests {
     }
 
     use crate::type_name_for_fingerprint;
+
+    proptest::proptest! {
+        #[test]
+        fn decoding_garbage_never_panics(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..200)) {
+            let _ = PingT::decode(&bytes);
+            let _ = NodeStatusT::decode(&bytes);
+            // Behind a valid fingerprint, the body decoder sees the garbage too.
+            let mut framed = PingT::FINGERPRINT.to_be_bytes().to_vec();
+            framed.extend_from_slice(&bytes);
+            let _ = PingT::decode(&framed);
+            let mut framed = NodeStatusT::FINGERPRINT.to_be_bytes().to_vec();
+            framed.extend_from_slice(&bytes);
+            let _ = NodeStatusT::decode(&framed);
+        }
+
+        #[test]
+        fn random_pings_round_trip(seq in proptest::num::i64::ANY, frame in "[a-z]{0,12}",
+                                   payload in proptest::collection::vec(proptest::num::u8::ANY, 0..300)) {
+            let p = PingT {
+                header: HeaderT { utime: seq ^ 0x55, sequence: seq, frame },
+                sent_utime: seq.wrapping_mul(3),
+                echoed_by: "x".into(),
+                payload_size: payload.len() as i32,
+                payload,
+            };
+            let bytes = p.encode().unwrap();
+            proptest::prop_assert_eq!(bytes.len(), p.encoded_size());
+            proptest::prop_assert_eq!(PingT::decode(&bytes).unwrap(), p);
+        }
+    }
 }
