@@ -4,8 +4,7 @@
  * and print the same result line, so scripts/bench can run them side by side.
  *
  *   lcm_perf pong   URL                      echo PERF_PING back on PERF_PONG until killed
- *   lcm_perf ping   URL SIZE COUNT [FILE]    COUNT round trips of SIZE-byte messages (each
- *                                            round trip in ns appended to FILE)
+ *   lcm_perf ping   URL SIZE COUNT           COUNT round trips of SIZE-byte messages
  *   lcm_perf sink   URL                      receive PERF_DATA, acknowledge on PERF_ACK
  *   lcm_perf source URL SIZE COUNT WINDOW    send COUNT messages, at most WINDOW unacknowledged
  *   lcm_perf loop   URL SIZE COUNT           publish and handle COUNT messages in one process
@@ -132,13 +131,6 @@ int main(int argc, char **argv) {
                 if (lcm_handle_timeout(lcm, 1000) <= 0) break;
             }
             if (st.got) rtt[n++] = now_ns() - t0; else lost++;
-        }
-        if (argc >= 6) {
-            FILE *f = fopen(argv[5], "a");
-            if (f) {
-                for (int i = 0; i < n; i++) fprintf(f, "%lld\n", (long long)rtt[i]);
-                fclose(f);
-            }
         }
         qsort(rtt, n, sizeof(int64_t), cmp_i64);
         double sum = 0;

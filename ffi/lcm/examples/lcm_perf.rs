@@ -5,8 +5,7 @@
 //!
 //! ```text
 //! lcm_perf pong   URL                      echo PERF_PING back on PERF_PONG until killed
-//! lcm_perf ping   URL SIZE COUNT [FILE]    COUNT round trips of SIZE-byte messages (each
-//!                                          round trip in ns appended to FILE)
+//! lcm_perf ping   URL SIZE COUNT           COUNT round trips of SIZE-byte messages
 //! lcm_perf sink   URL                      receive PERF_DATA, acknowledge on PERF_ACK
 //! lcm_perf source URL SIZE COUNT WINDOW    send COUNT messages, at most WINDOW unacknowledged
 //! lcm_perf loop   URL SIZE COUNT           publish and handle COUNT messages in one process
@@ -138,19 +137,6 @@ fn main() {
                 } else {
                     lost += 1;
                 }
-            }
-            if let Some(path) = args.get(5) {
-                use std::io::Write;
-                let mut out = String::with_capacity(rtt.len() * 8);
-                for r in &rtt {
-                    out += &format!("{r}\n");
-                }
-                let mut f = std::fs::OpenOptions::new()
-                    .create(true)
-                    .append(true)
-                    .open(path)
-                    .expect("samples file");
-                f.write_all(out.as_bytes()).expect("write samples");
             }
             rtt.sort_unstable();
             let mean = rtt.iter().sum::<u64>() as f64 / rtt.len().max(1) as f64;

@@ -33,6 +33,13 @@ pub fn default_url() -> String {
     }
 }
 
+/// Adds one to a counter that only one thread writes at a time (the handling thread, or a
+/// publisher holding the publish lock): a plain load and store, no locked instruction.
+#[inline]
+fn bump(counter: &AtomicU64) {
+    counter.store(counter.load(Relaxed) + 1, Relaxed);
+}
+
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
@@ -169,11 +176,12 @@ impl Publisher {
                 data.len() as u32,
             )
         };
+        // Both counters are only written under the publish lock.
         if rc == 0 {
-            self.shared.counters.published.fetch_add(1, Relaxed);
+            bump(&self.shared.counters.published);
             Ok(())
         } else {
-            self.shared.counters.publish_errors.fetch_add(1, Relaxed);
+            bump(&self.shared.counters.publish_errors);
             Err(Error::Publish {
                 channel: channel.to_owned(),
                 len: data.len(),
@@ -562,13 +570,19 @@ impl Lcm {
                     Outcome::Delivered
                 }
                 Err(e) => {
-                    tracing::warn!(
-                        channel = info.channel,
-                        size = info.size,
-                        r#type = M::TYPE_NAME,
-                        error = %e,
-                        "dropping a message that does not decode"
-                    );
+                    // The first ten, then every power of two: a flood of garbage does not
+                    // flood the log, and the counter keeps the exact number.
+                    let n = sub_counters.decode_errors.load(Relaxed) + 1;
+                    if n <= 10 || n.is_power_of_two() {
+                        tracing::warn!(
+                            channel = info.channel,
+                            size = info.size,
+                            r#type = M::TYPE_NAME,
+                            error = %e,
+                            count = n,
+                            "dropping a message that does not decode"
+                        );
+                    }
                     Outcome::DecodeError
                 }
             }),
@@ -712,18 +726,19 @@ unsafe extern "C" fn trampoline(
     // is inside Lcm::handle*, never re-entrantly (liblcm refuses recursive handle calls).
     let handler = unsafe { &mut *state.handler.get() };
     let global = &state.shared.counters;
+    // The dispatch counters are only written here, on the handling thread.
     match catch_unwind(AssertUnwindSafe(|| handler(&info, data))) {
         Ok(Outcome::Delivered) => {
-            state.counters.received.fetch_add(1, Relaxed);
-            global.received.fetch_add(1, Relaxed);
+            bump(&state.counters.received);
+            bump(&global.received);
         }
         Ok(Outcome::DecodeError) => {
-            state.counters.decode_errors.fetch_add(1, Relaxed);
-            global.decode_errors.fetch_add(1, Relaxed);
+            bump(&state.counters.decode_errors);
+            bump(&global.decode_errors);
         }
         Err(payload) => {
-            state.counters.handler_panics.fetch_add(1, Relaxed);
-            global.handler_panics.fetch_add(1, Relaxed);
+            bump(&state.counters.handler_panics);
+            bump(&global.handler_panics);
             let what = payload
                 .downcast_ref::<&str>()
                 .map(|s| s.to_string())
