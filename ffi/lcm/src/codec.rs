@@ -96,7 +96,30 @@ macro_rules! put_num {
     )*};
 }
 
+macro_rules! put_slice {
+    ($($name:ident: $t:ty),* $(,)?) => {$(
+        #[doc = concat!("Appends a slice of big-endian `", stringify!($t), "` (an array member).")]
+        #[inline]
+        pub fn $name(&mut self, v: &[$t]) {
+            const N: usize = std::mem::size_of::<$t>();
+            let start = self.buf.len();
+            self.buf.resize(start + v.len() * N, 0);
+            for (chunk, x) in self.buf[start..].chunks_exact_mut(N).zip(v) {
+                chunk.copy_from_slice(&x.to_be_bytes());
+            }
+        }
+    )*};
+}
+
 impl<'a> Encoder<'a> {
+    put_slice!(put_i8_slice: i8, put_i16_slice: i16, put_i32_slice: i32, put_i64_slice: i64, put_f32_slice: f32, put_f64_slice: f64);
+
+    /// Appends a `byte` array (same as [`Encoder::put_bytes`]).
+    #[inline]
+    pub fn put_u8_slice(&mut self, v: &[u8]) {
+        self.buf.extend_from_slice(v);
+    }
+
     /// Wraps a buffer; bytes are appended after its current contents.
     pub fn new(buf: &'a mut Vec<u8>) -> Self {
         Encoder { buf }
@@ -163,7 +186,31 @@ macro_rules! get_num {
     )*};
 }
 
+macro_rules! get_into {
+    ($($name:ident: $t:ty),* $(,)?) => {$(
+        #[doc = concat!("Fills `out` with big-endian `", stringify!($t), "` values (an array member).")]
+        #[inline]
+        pub fn $name(&mut self, out: &mut [$t]) -> Result<(), DecodeError> {
+            const N: usize = std::mem::size_of::<$t>();
+            let bytes = self.take(out.len() * N)?;
+            for (x, chunk) in out.iter_mut().zip(bytes.chunks_exact(N)) {
+                *x = <$t>::from_be_bytes(chunk.try_into().expect("chunk size"));
+            }
+            Ok(())
+        }
+    )*};
+}
+
 impl<'a> Decoder<'a> {
+    get_into!(get_i8_into: i8, get_i16_into: i16, get_i32_into: i32, get_i64_into: i64, get_f32_into: f32, get_f64_into: f64);
+
+    /// Fills `out` with the next bytes (a `byte` array).
+    #[inline]
+    pub fn get_u8_into(&mut self, out: &mut [u8]) -> Result<(), DecodeError> {
+        out.copy_from_slice(self.take(out.len())?);
+        Ok(())
+    }
+
     /// Starts reading at the beginning of `buf`.
     pub fn new(buf: &'a [u8]) -> Self {
         Decoder { buf }
@@ -380,6 +427,24 @@ mod tests {
                 remaining: 2
             })
         );
+    }
+
+    #[test]
+    fn bulk_slices_match_scalars() {
+        let v = [1.5f64, -2.0, 3.25];
+        let mut a = Vec::new();
+        Encoder::new(&mut a).put_f64_slice(&v);
+        let mut b = Vec::new();
+        let mut e = Encoder::new(&mut b);
+        for x in v {
+            e.put_f64(x);
+        }
+        assert_eq!(a, b);
+        let mut back = [0f64; 3];
+        Decoder::new(&a).get_f64_into(&mut back).unwrap();
+        assert_eq!(back, v);
+        let mut short = [0i32; 4];
+        assert!(Decoder::new(&[0; 15]).get_i32_into(&mut short).is_err());
     }
 
     proptest::proptest! {

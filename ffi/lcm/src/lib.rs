@@ -25,6 +25,7 @@ mod codec;
 mod error;
 mod eventlog;
 mod instance;
+mod random;
 mod sequence;
 
 pub use codec::{DecodeError, Decoder, EncodeError, Encoder, Message};
@@ -34,6 +35,7 @@ pub use instance::{
     default_url, Lcm, Publisher, RecvInfo, Stats, Subscription, SubscriptionStats, DEFAULT_URL,
     MAX_CHANNEL_LEN,
 };
+pub use random::{Random, Rng};
 pub use sequence::SequenceTracker;
 
 /// True when the linked liblcm can report subscription queue sizes (liblcm >= 1.4).
