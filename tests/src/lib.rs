@@ -1,5 +1,18 @@
 //! Helpers for the cross-process tests: the sandbox check, unique bus URLs, and child
-//! processes that are stopped when the test ends.
+//! processes that are stopped when the test ends; and the Rust code generated from the
+//! feature-test types in `tests/lcm/` and `tests/lcm-const-dims/`.
+
+/// Types exercising every feature of the LCM type language (`tests/lcm/`).
+#[allow(clippy::all)]
+pub mod features {
+    include!(concat!(env!("OUT_DIR"), "/feature_types.rs"));
+}
+
+/// Arrays sized by constants, which only liblcm 1.4+ accepts (`tests/lcm-const-dims/`).
+#[allow(clippy::all)]
+pub mod const_dims {
+    include!(concat!(env!("OUT_DIR"), "/const_dims_types.rs"));
+}
 
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};

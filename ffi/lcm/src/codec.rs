@@ -272,23 +272,31 @@ impl<'a> Decoder<'a> {
 
     /// Converts a decoded length member to `usize`, refusing negative lengths and lengths whose
     /// elements (at least `min_elem_size` bytes each) cannot fit in what is left. This bounds
-    /// every allocation by the input size.
+    /// every allocation by the input size. Elements that may encode to nothing (an inner array
+    /// of size 0) are allowed up to [`Decoder::MAX_EMPTY_ELEMENTS`].
     pub fn check_len(&self, len: i64, min_elem_size: usize) -> Result<usize, DecodeError> {
+        let too_large = || DecodeError::LengthTooLarge {
+            len,
+            remaining: self.buf.len(),
+        };
         if len < 0 {
             return Err(DecodeError::NegativeLength(len));
         }
-        let n = usize::try_from(len).map_err(|_| DecodeError::LengthTooLarge {
-            len,
-            remaining: self.buf.len(),
-        })?;
-        if n.saturating_mul(min_elem_size.max(1)) > self.buf.len() {
-            return Err(DecodeError::LengthTooLarge {
-                len,
-                remaining: self.buf.len(),
-            });
+        let n = usize::try_from(len).map_err(|_| too_large())?;
+        let fits = if min_elem_size == 0 {
+            n <= Self::MAX_EMPTY_ELEMENTS
+        } else {
+            n.saturating_mul(min_elem_size) <= self.buf.len()
+        };
+        if fits {
+            Ok(n)
+        } else {
+            Err(too_large())
         }
-        Ok(n)
     }
+
+    /// How many elements that encode to no bytes at all an array may claim.
+    pub const MAX_EMPTY_ELEMENTS: usize = 1 << 16;
 }
 
 /// A type with an LCM encoding: what `lcm-gen` would generate for a `struct` in a `.lcm` file.

@@ -1,22 +1,44 @@
 //! Random instances of LCM types, for tests (the generated `Random` impls use these).
 
-/// A small deterministic pseudo-random generator (xorshift64*).
+/// A small deterministic pseudo-random generator (xorshift64*), with a budget of array
+/// elements so that random recursive types (trees) stay finite.
 #[derive(Debug, Clone)]
-pub struct Rng(u64);
+pub struct Rng {
+    state: u64,
+    budget: u64,
+}
 
 impl Rng {
-    /// A generator seeded with `seed` (any value; 0 is remapped).
+    /// Array elements a generator hands out before every further array is empty.
+    pub const DEFAULT_BUDGET: u64 = 256;
+
+    /// A generator seeded with `seed` (any value).
     pub fn new(seed: u64) -> Rng {
-        Rng(seed ^ 0x9e37_79b9_7f4a_7c15 | 1)
+        Rng {
+            state: seed ^ 0x9e37_79b9_7f4a_7c15 | 1,
+            budget: Self::DEFAULT_BUDGET,
+        }
+    }
+
+    /// Resets the element budget (call it before each top-level instance).
+    pub fn set_budget(&mut self, elements: u64) {
+        self.budget = elements;
+    }
+
+    /// An array size: 0 to 3 elements while the budget lasts, 0 after.
+    pub fn size(&mut self) -> u64 {
+        let n = self.below(4).min(self.budget);
+        self.budget -= n;
+        n
     }
 
     /// The next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
-        let mut x = self.0;
+        let mut x = self.state;
         x ^= x >> 12;
         x ^= x << 25;
         x ^= x >> 27;
-        self.0 = x;
+        self.state = x;
         x.wrapping_mul(0x2545_f491_4f6c_dd1d)
     }
 

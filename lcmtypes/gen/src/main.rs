@@ -55,6 +55,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             &set,
             &lcmgen::rust::Options {
                 registry: !cli.no_registry,
+                ..Default::default()
             },
         )
     };

@@ -6,17 +6,46 @@ use std::fmt::Write;
 use crate::ast::{ConstValue, Dim, Member, Primitive, Struct, TypeRef};
 use crate::TypeSet;
 
+/// Whether a piece of generated code is emitted, and under which condition.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Gate {
+    /// Not emitted.
+    Never,
+    /// Emitted behind the including crate's feature of that name (`serde`, `json`, `random`).
+    Feature,
+    /// Emitted unconditionally.
+    Always,
+}
+
+impl Gate {
+    fn attr(self, feature: &str) -> Option<String> {
+        match self {
+            Gate::Never => None,
+            Gate::Feature => Some(format!("#[cfg(feature = \"{feature}\")]\n")),
+            Gate::Always => Some(String::new()),
+        }
+    }
+}
+
 /// What to emit besides the types.
 #[derive(Debug, Clone)]
 pub struct Options {
-    /// Emit `TYPES` (name and fingerprint of every type) and, behind the including crate's
-    /// `json` feature, `decode_json` (any message to JSON by its fingerprint).
+    /// Emit `TYPES` (name and fingerprint of every type) and `decode_json` (any message to
+    /// JSON by its fingerprint; gated like `serde`, under the feature `json`).
     pub registry: bool,
+    /// serde `Serialize`/`Deserialize` derives (needs `serde` and `serde-big-array`).
+    pub serde: Gate,
+    /// `lcm::Random` impls (random instances for tests).
+    pub random: Gate,
 }
 
 impl Default for Options {
     fn default() -> Self {
-        Options { registry: true }
+        Options {
+            registry: true,
+            serde: Gate::Feature,
+            random: Gate::Feature,
+        }
     }
 }
 
@@ -289,7 +318,7 @@ impl Ctx<'_> {
             Dim::Const { value, .. } => value.to_string(),
             Dim::Var(n) => format!(
                 "d.check_len(f_{n} as i64, {})?",
-                self.set.min_size(ty, &dims[1..])
+                self.min_size_expr(ty, &dims[1..])
             ),
         };
         let rest_all_fixed = dims[1..].iter().all(|d| matches!(d, Dim::Const { .. }));
@@ -330,6 +359,25 @@ impl Ctx<'_> {
                 "{{ let mut v = Vec::with_capacity({value}); for _ in 0..{value} {{ v.push({inner}); }} match <[_; {value}]>::try_from(v) {{ Ok(a) => a, Err(_) => unreachable!() }} }}"
             ),
         }
+    }
+
+    /// The smallest encoding of one element with these inner dimensions, as an expression:
+    /// inner variable sizes are already decoded into locals.
+    fn min_size_expr(&self, ty: &TypeRef, dims: &[Dim]) -> String {
+        let scalar = self.set.min_size(ty, &[]);
+        let mut fixed = scalar;
+        let mut vars = Vec::new();
+        for d in dims {
+            match d {
+                Dim::Const { value, .. } => fixed = fixed.saturating_mul(*value),
+                Dim::Var(n) => vars.push(format!("(f_{n}.max(0) as usize)")),
+            }
+        }
+        let mut e = fixed.to_string();
+        for v in vars {
+            e = format!("{e}usize.saturating_mul{v}");
+        }
+        e
     }
 
     fn random_expr(&self, ty: &TypeRef, dims: &[Dim]) -> String {
@@ -389,7 +437,7 @@ fn sequence_expr(set: &TypeSet, s: &Struct) -> Option<String> {
         .then(|| "self.header.sequence".into())
 }
 
-fn emit_struct(out: &mut String, set: &TypeSet, s: &Struct) {
+fn emit_struct(out: &mut String, set: &TypeSet, s: &Struct, opts: &Options) {
     let ctx = Ctx {
         set,
         pkg: &s.package,
@@ -410,11 +458,15 @@ fn emit_struct(out: &mut String, set: &TypeSet, s: &Struct) {
     doc_lines(out, "", s.doc.as_deref(), &format!("LCM type `{full}`."));
     let _ = writeln!(out, "///\n/// LCM type `{full}`.");
     let _ = writeln!(out, "#[derive(Debug, Clone, PartialEq)]");
-    let _ = writeln!(
-        out,
-        "#[cfg_attr(feature = \"serde\", derive(serde::Serialize, serde::Deserialize))]"
-    );
-    let _ = writeln!(out, "pub struct {name} {{");
+    let serde_attr = |inner: &str| match opts.serde {
+        Gate::Never => None,
+        Gate::Feature => Some(format!("#[cfg_attr(feature = \"serde\", {inner})]")),
+        Gate::Always => Some(format!("#[{inner}]")),
+    };
+    if let Some(a) = serde_attr("derive(serde::Serialize, serde::Deserialize)") {
+        let _ = writeln!(out, "{a}");
+    }
+    let _ = writeln!(out, "#[allow(non_snake_case)]\npub struct {name} {{");
     for m in &s.members {
         let fallback = if size_vars.contains(m.name.as_str()) {
             format!("Number of elements of the arrays sized by `{}`.", m.name)
@@ -424,10 +476,9 @@ fn emit_struct(out: &mut String, set: &TypeSet, s: &Struct) {
         doc_lines(out, "    ", m.doc.as_deref(), &fallback);
         if let Some(Dim::Const { value, .. }) = m.dims.first() {
             if *value > 32 {
-                let _ = writeln!(
-                    out,
-                    "    #[cfg_attr(feature = \"serde\", serde(with = \"serde_big_array::BigArray\"))]"
-                );
+                if let Some(a) = serde_attr("serde(with = \"serde_big_array::BigArray\")") {
+                    let _ = writeln!(out, "    {a}");
+                }
             }
         }
         let _ = writeln!(
@@ -440,7 +491,7 @@ fn emit_struct(out: &mut String, set: &TypeSet, s: &Struct) {
     let _ = writeln!(out, "}}\n");
 
     // Constants and the base hash.
-    let _ = writeln!(out, "impl {name} {{");
+    let _ = writeln!(out, "#[allow(non_upper_case_globals)]\nimpl {name} {{");
     for c in &s.consts {
         doc_lines(
             out,
@@ -483,7 +534,10 @@ fn emit_struct(out: &mut String, set: &TypeSet, s: &Struct) {
     let _ = writeln!(out, "        }}\n    }}\n}}\n");
 
     // Message.
-    let _ = writeln!(out, "impl lcm::Message for {name} {{");
+    let _ = writeln!(
+        out,
+        "#[allow(non_snake_case)]\nimpl lcm::Message for {name} {{"
+    );
     let _ = writeln!(
         out,
         "    const FINGERPRINT: u64 = {:#018x};\n    const TYPE_NAME: &'static str = {full:?};\n",
@@ -558,9 +612,12 @@ fn emit_struct(out: &mut String, set: &TypeSet, s: &Struct) {
     let _ = writeln!(out, "}}\n");
 
     // Random instances, for tests.
+    let Some(gate) = opts.random.attr("random") else {
+        return;
+    };
     let _ = writeln!(
         out,
-        "#[cfg(feature = \"random\")]\nimpl lcm::Random for {name} {{"
+        "{gate}#[allow(non_snake_case)]\nimpl lcm::Random for {name} {{"
     );
     let _ = writeln!(out, "    fn random(rng: &mut lcm::Rng) -> Self {{");
     if s.members.is_empty() {
@@ -568,7 +625,7 @@ fn emit_struct(out: &mut String, set: &TypeSet, s: &Struct) {
     }
     for m in &s.members {
         let expr = if size_vars.contains(m.name.as_str()) {
-            format!("rng.below(4) as {}", ctx.elem_type(&m.ty))
+            format!("rng.size() as {}", ctx.elem_type(&m.ty))
         } else {
             ctx.random_expr(&m.ty, &m.dims)
         };
@@ -587,9 +644,9 @@ struct ModTree<'a> {
     children: BTreeMap<String, ModTree<'a>>,
 }
 
-fn emit_tree(out: &mut String, set: &TypeSet, tree: &ModTree<'_>, pkg: &str) {
+fn emit_tree(out: &mut String, set: &TypeSet, tree: &ModTree<'_>, pkg: &str, opts: &Options) {
     for s in &tree.structs {
-        emit_struct(out, set, s);
+        emit_struct(out, set, s, opts);
     }
     for (name, child) in &tree.children {
         let sub = if pkg.is_empty() {
@@ -598,7 +655,7 @@ fn emit_tree(out: &mut String, set: &TypeSet, tree: &ModTree<'_>, pkg: &str) {
             format!("{pkg}.{name}")
         };
         let _ = writeln!(out, "/// LCM package `{sub}`.\npub mod {} {{", ident(name));
-        emit_tree(out, set, child, &sub);
+        emit_tree(out, set, child, &sub, opts);
         let _ = writeln!(out, "}}");
     }
 }
@@ -614,7 +671,7 @@ pub fn generate(set: &TypeSet, opts: &Options) -> String {
         node.structs.push(s);
     }
     let mut out = String::from("// Generated by stride-lcm-gen from .lcm files; do not edit.\n\n");
-    emit_tree(&mut out, set, &tree, "");
+    emit_tree(&mut out, set, &tree, "", opts);
     if opts.registry {
         out.push_str("/// Every generated type: its full LCM name and its fingerprint.\npub const TYPES: &[(&str, u64)] = &[\n");
         for s in set.structs() {
@@ -622,8 +679,11 @@ pub fn generate(set: &TypeSet, opts: &Options) -> String {
             let _ = writeln!(out, "    ({full:?}, {:#018x}),", set.fingerprint(&full));
         }
         out.push_str("];\n\n");
+    }
+    if let (true, Some(gate)) = (opts.registry, opts.serde.attr("json")) {
+        out.push_str(&gate);
         out.push_str(
-            "/// Decodes any generated type, recognised by its fingerprint, to JSON: the type's name\n/// and the value, or `None` when no type has that fingerprint.\n#[cfg(feature = \"json\")]\npub fn decode_json(data: &[u8]) -> Option<(&'static str, Result<serde_json::Value, String>)> {\n    fn conv<M: lcm::Message + serde::Serialize>(data: &[u8]) -> Result<serde_json::Value, String> {\n        let m = M::decode(data).map_err(|e| e.to_string())?;\n        serde_json::to_value(&m).map_err(|e| e.to_string())\n    }\n    let fp = u64::from_be_bytes(data.get(..8)?.try_into().ok()?);\n    match fp {\n",
+            "/// Decodes any generated type, recognised by its fingerprint, to JSON: the type's name\n/// and the value, or `None` when no type has that fingerprint.\npub fn decode_json(data: &[u8]) -> Option<(&'static str, Result<serde_json::Value, String>)> {\n    fn conv<M: lcm::Message + serde::Serialize>(data: &[u8]) -> Result<serde_json::Value, String> {\n        let m = M::decode(data).map_err(|e| e.to_string())?;\n        serde_json::to_value(&m).map_err(|e| e.to_string())\n    }\n    let fp = u64::from_be_bytes(data.get(..8)?.try_into().ok()?);\n    match fp {\n",
         );
         for s in set.structs() {
             let full = s.full_name();
