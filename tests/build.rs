@@ -113,4 +113,41 @@ fn main() {
         }
     }
     build.compile("stride_c_types");
+
+    build_legacy_controller(&here, &out, &files);
+}
+
+/// The legacy C controller (`tests/c/legacy_controller.c`), linked with lcm-gen's C code
+/// (publish/subscribe included) and liblcm, as a lab would build it.
+fn build_legacy_controller(here: &std::path::Path, out: &std::path::Path, files: &[PathBuf]) {
+    let src = here.join("c/legacy_controller.c");
+    println!("cargo:rerun-if-changed={}", src.display());
+    let gen = out.join("c-pubsub");
+    let _ = std::fs::remove_dir_all(&gen);
+    std::fs::create_dir_all(&gen).unwrap();
+    for f in files.iter().filter(|f| f.starts_with(here.join("../lcmtypes"))) {
+        let status = Command::new("lcm-gen")
+            .args(["-c", "--c-cpath"])
+            .arg(&gen)
+            .arg("--c-hpath")
+            .arg(&gen)
+            .arg(f)
+            .status()
+            .expect("running lcm-gen");
+        assert!(status.success(), "lcm-gen failed on {}", f.display());
+    }
+    let exe = out.join("legacy-controller");
+    let compiler = cc::Build::new().get_compiler();
+    let mut cmd = compiler.to_command();
+    cmd.arg("-O2").arg("-std=gnu99").arg("-I").arg(&gen).arg(&src);
+    for entry in std::fs::read_dir(&gen).unwrap() {
+        let p = entry.unwrap().path();
+        if p.extension().is_some_and(|e| e == "c") {
+            cmd.arg(p);
+        }
+    }
+    cmd.arg("-o").arg(&exe).args(["-llcm", "-lm"]);
+    let status = cmd.status().expect("running the C compiler");
+    assert!(status.success(), "building legacy_controller failed");
+    println!("cargo:rustc-env=STRIDE_LEGACY_CONTROLLER={}", exe.display());
 }
