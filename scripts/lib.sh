@@ -12,6 +12,7 @@ STRIDE_PACKAGES=(
     pkg-config gcc libc6-dev          # finding and building against liblcm
     iproute2 util-linux               # ip, unshare: the private test network
     python3 python3-pip               # bench tables; the newer-liblcm check in scripts/test
+    default-jdk-headless libjchart2d-java # the Java types and lcm-spy (scripts/spy)
 )
 
 say() {
