@@ -125,7 +125,10 @@ fn build_legacy_controller(here: &std::path::Path, out: &std::path::Path, files:
     let gen = out.join("c-pubsub");
     let _ = std::fs::remove_dir_all(&gen);
     std::fs::create_dir_all(&gen).unwrap();
-    for f in files.iter().filter(|f| f.starts_with(here.join("../lcmtypes"))) {
+    for f in files
+        .iter()
+        .filter(|f| f.starts_with(here.join("../lcmtypes")))
+    {
         let status = Command::new("lcm-gen")
             .args(["-c", "--c-cpath"])
             .arg(&gen)
@@ -139,7 +142,11 @@ fn build_legacy_controller(here: &std::path::Path, out: &std::path::Path, files:
     let exe = out.join("legacy-controller");
     let compiler = cc::Build::new().get_compiler();
     let mut cmd = compiler.to_command();
-    cmd.arg("-O2").arg("-std=gnu99").arg("-I").arg(&gen).arg(&src);
+    cmd.arg("-O2")
+        .arg("-std=gnu99")
+        .arg("-I")
+        .arg(&gen)
+        .arg(&src);
     for entry in std::fs::read_dir(&gen).unwrap() {
         let p = entry.unwrap().path();
         if p.extension().is_some_and(|e| e == "c") {

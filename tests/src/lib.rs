@@ -55,6 +55,23 @@ pub fn bin(name: &str) -> PathBuf {
     p
 }
 
+/// Starts the stock `lcm-logger` recording `channels` on `url` into `path`, and returns once
+/// it runs and has had time to subscribe.
+pub fn lcm_logger(url: &str, channels: &str, path: &std::path::Path) -> Proc {
+    let mut c = Command::new("lcm-logger");
+    // liblcm 1.3.1's lcm-logger rejects the short `-l`; the long form works everywhere.
+    c.args(["-q", "-f", "-c", channels, "--flush-interval=10"])
+        .arg(format!("--lcm-url={url}"))
+        .arg(path);
+    let p = Proc::spawn(c);
+    let t0 = Instant::now();
+    while !path.exists() && t0.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    p
+}
+
 /// A child process killed (SIGINT, then SIGKILL) when dropped.
 #[derive(Debug)]
 pub struct Proc {

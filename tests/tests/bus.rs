@@ -122,21 +122,8 @@ fn lcm_logger_log_is_read_by_our_crate() {
     let url = udpm_url(7713);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("rec.lcmlog");
-    let logger = {
-        let mut c = Command::new("lcm-logger");
-        // liblcm 1.3.1's lcm-logger rejects the short `-l`; the long form works everywhere.
-        c.args(["-q", "-f", "-c", "REC_.*", "--flush-interval=10"])
-            .arg(format!("--lcm-url={url}"))
-            .arg(&path);
-        Proc::spawn(c)
-    };
+    let logger = stride_tests::lcm_logger(&url, "REC_.*", &path);
     let lcm = Lcm::new(&url).unwrap();
-    // Wait for the logger: its file exists once it runs; then let it subscribe.
-    let t0 = Instant::now();
-    while !path.exists() && t0.elapsed() < Duration::from_secs(10) {
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    std::thread::sleep(Duration::from_millis(500));
     for i in 0..20 {
         lcm.publish("REC_PING", &ping(i, 64)).unwrap();
         lcm.publish_raw("REC_RAW", &[i as u8; 10]).unwrap();

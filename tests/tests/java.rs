@@ -23,7 +23,11 @@ fn java_types_decode_messages_published_from_rust() {
         .arg("--build-only")
         .output()
         .expect("running scripts/spy");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let jar = String::from_utf8(out.stdout).unwrap().trim().to_owned();
     let dir = tempfile::tempdir().unwrap();
     let cp = format!("/usr/share/java/lcm.jar:{jar}");
@@ -90,7 +94,16 @@ fn java_types_decode_messages_published_from_rust() {
     let out = java.wait_with_output().unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(status_code.success(), "{text}");
-    assert!(text.contains("ping_t sequence=42 frame=map payload_size=5 last_byte=250"), "{text}");
-    assert!(text.contains("node_status_t node=rust-node state=2 detail=from rust"), "{text}");
-    assert!(text.contains("joint_trajectory_t joints=hip,knee,ankle rows=2 positions[1][2]=0.75"), "{text}");
+    assert!(
+        text.contains("ping_t sequence=42 frame=map payload_size=5 last_byte=250"),
+        "{text}"
+    );
+    assert!(
+        text.contains("node_status_t node=rust-node state=2 detail=from rust"),
+        "{text}"
+    );
+    assert!(
+        text.contains("joint_trajectory_t joints=hip,knee,ankle rows=2 positions[1][2]=0.75"),
+        "{text}"
+    );
 }

@@ -24,7 +24,16 @@ fn stride_ping_round_trips_through_the_c_controller() {
     std::thread::sleep(Duration::from_millis(300));
     let mut ping = Command::new(bin("stride-ping"));
     ping.args([
-        "--lcm-url", &url, "--count", "30", "--rate", "100", "--linger", "3", "--log-level", "warn",
+        "--lcm-url",
+        &url,
+        "--count",
+        "30",
+        "--rate",
+        "100",
+        "--linger",
+        "3",
+        "--log-level",
+        "warn",
     ]);
     let (st, out) = Proc::spawn(ping).wait(Duration::from_secs(30));
     assert!(st.success(), "{out}");
@@ -45,7 +54,9 @@ fn rust_commands_move_the_c_controllers_joints() {
     let states: Arc<Mutex<Vec<JointStateT>>> = Arc::default();
     let s = states.clone();
     let sub = lcm
-        .subscribe("JOINT_STATE", move |_, m: JointStateT| s.lock().unwrap().push(m))
+        .subscribe("JOINT_STATE", move |_, m: JointStateT| {
+            s.lock().unwrap().push(m)
+        })
         .unwrap();
     let cmd = JointCommandT {
         num_joints: 2,
@@ -64,13 +75,20 @@ fn rust_commands_move_the_c_controllers_joints() {
             (m.positions[1] - 0.3).abs() < 1e-9 && (m.positions[3] + 0.2).abs() < 1e-9
         });
     }
-    assert!(reached, "the C controller never reached the commanded positions");
+    assert!(
+        reached,
+        "the C controller never reached the commanded positions"
+    );
     let states = states.lock().unwrap();
     let last = states.last().unwrap();
     assert_eq!(last.names, ["joint0", "joint1", "joint2", "joint3"]);
     assert_eq!(last.positions[0], 0.0);
     assert_eq!(sub.stats().decode_errors, 0);
-    assert_eq!(sub.stats().lost, 0, "sequence numbers from C must be contiguous");
+    assert_eq!(
+        sub.stats().lost,
+        0,
+        "sequence numbers from C must be contiguous"
+    );
     let (st, out) = ctl.interrupt();
     assert!(st.success(), "{out}");
 }

@@ -92,6 +92,17 @@ pub fn init_logging(filter: &str) {
         .try_init();
 }
 
+/// A flag that SIGINT or SIGTERM sets; a second signal while it is set exits at once.
+pub fn shutdown_on_signals() -> anyhow::Result<Arc<AtomicBool>> {
+    let flag = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register_conditional_shutdown(sig, 1, flag.clone())
+            .context("installing the signal handler")?;
+        signal_hook::flag::register(sig, flag.clone()).context("installing the signal handler")?;
+    }
+    Ok(flag)
+}
+
 /// What a node reports about itself in its heartbeat.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Health {
@@ -129,14 +140,7 @@ impl Node {
         init_logging(&args.log_level);
         let name = args.name.clone().unwrap_or_else(|| default_name.to_owned());
         let lcm = Lcm::new(&args.lcm_url)?;
-        let shutdown = Arc::new(AtomicBool::new(false));
-        for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-            // A second signal while shutting down exits at once.
-            signal_hook::flag::register_conditional_shutdown(sig, 1, shutdown.clone())
-                .context("installing the signal handler")?;
-            signal_hook::flag::register(sig, shutdown.clone())
-                .context("installing the signal handler")?;
-        }
+        let shutdown = shutdown_on_signals()?;
         let health = Arc::new(Mutex::new(Health {
             state: stride_lcmtypes::stride::NodeStatusT::STATE_STARTING,
             detail: String::new(),

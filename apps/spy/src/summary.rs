@@ -1,8 +1,6 @@
-//! Per-channel statistics of an LCM event log.
+//! Per-channel statistics: events, bytes, rate, bandwidth, type.
 
 use std::collections::BTreeMap;
-
-use lcm::LogEvent;
 
 /// What one channel of a log holds.
 #[derive(Debug, Clone, PartialEq)]
@@ -22,6 +20,16 @@ pub struct ChannelSummary {
 }
 
 impl ChannelSummary {
+    /// Mean bandwidth over the channel's own span, bytes per second.
+    pub fn bytes_per_s(&self) -> f64 {
+        let span = (self.last_utime - self.first_utime) as f64 / 1e6;
+        if self.count < 2 || span <= 0.0 {
+            0.0
+        } else {
+            self.bytes as f64 * (self.count - 1) as f64 / self.count as f64 / span
+        }
+    }
+
     /// Mean rate over the channel's own span, in Hz (0 for fewer than two events).
     pub fn rate_hz(&self) -> f64 {
         let span = (self.last_utime - self.first_utime) as f64 / 1e6;
@@ -48,45 +56,73 @@ pub fn type_of(data: &[u8]) -> String {
     }
 }
 
-/// Summarises events, sorted by channel name.
-pub fn summarize(events: impl IntoIterator<Item = LogEvent>) -> Vec<ChannelSummary> {
-    let mut map: BTreeMap<String, ChannelSummary> = BTreeMap::new();
-    for ev in events {
-        let ty = type_of(&ev.data);
-        let s = map
-            .entry(ev.channel.clone())
-            .or_insert_with(|| ChannelSummary {
-                channel: ev.channel.clone(),
-                count: 0,
-                bytes: 0,
-                first_utime: ev.timestamp,
-                last_utime: ev.timestamp,
-                type_name: ty.clone(),
-            });
+/// Accumulates per-channel statistics, message by message.
+#[derive(Debug, Default, Clone)]
+pub struct Summary {
+    channels: BTreeMap<String, ChannelSummary>,
+}
+
+impl Summary {
+    /// An empty summary.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Counts one message received at `utime` (µs).
+    pub fn add(&mut self, channel: &str, utime: i64, data: &[u8]) {
+        let ty = type_of(data);
+        let s = match self.channels.get_mut(channel) {
+            Some(s) => s,
+            None => self
+                .channels
+                .entry(channel.to_owned())
+                .or_insert(ChannelSummary {
+                    channel: channel.to_owned(),
+                    count: 0,
+                    bytes: 0,
+                    first_utime: utime,
+                    last_utime: utime,
+                    type_name: ty.clone(),
+                }),
+        };
         s.count += 1;
-        s.bytes += ev.data.len() as u64;
-        s.first_utime = s.first_utime.min(ev.timestamp);
-        s.last_utime = s.last_utime.max(ev.timestamp);
+        s.bytes += data.len() as u64;
+        s.first_utime = s.first_utime.min(utime);
+        s.last_utime = s.last_utime.max(utime);
         if !s.type_name.split('|').any(|t| t == ty) {
             s.type_name = format!("{}|{ty}", s.type_name);
         }
     }
-    map.into_values().collect()
+
+    /// The channels, sorted by name.
+    pub fn rows(&self) -> Vec<ChannelSummary> {
+        self.channels.values().cloned().collect()
+    }
+}
+
+/// Summarises log events, sorted by channel name.
+pub fn summarize(events: impl IntoIterator<Item = lcm::LogEvent>) -> Vec<ChannelSummary> {
+    let mut s = Summary::new();
+    for ev in events {
+        s.add(&ev.channel, ev.timestamp, &ev.data);
+    }
+    s.rows()
 }
 
 /// Renders a summary as an aligned text table.
 pub fn render_table(rows: &[ChannelSummary]) -> String {
     let mut out = format!(
-        "{:<24} {:>8} {:>12} {:>9}  {}\n",
-        "channel", "events", "bytes", "rate Hz", "type"
+        "{:<24} {:>8} {:>12} {:>9} {:>10}  {}\n",
+        "channel", "events", "bytes", "rate Hz", "kB/s", "type"
     );
     for r in rows {
         out += &format!(
-            "{:<24} {:>8} {:>12} {:>9.2}  {}\n",
+            "{:<24} {:>8} {:>12} {:>9.2} {:>10.2}  {}\n",
             r.channel,
             r.count,
             r.bytes,
             r.rate_hz(),
+            r.bytes_per_s() / 1e3,
             r.type_name
         );
     }
@@ -99,7 +135,7 @@ pub fn render_table(rows: &[ChannelSummary]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lcm::Message;
+    use lcm::{LogEvent, Message};
     use stride_lcmtypes::stride::PingT;
 
     #[test]
