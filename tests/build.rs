@@ -100,6 +100,40 @@ fn main() {
         );
     }
     cases.push_str("}\n");
+    // Codec benchmark loops, timed in C, for the types the codec benchmark uses.
+    harness.push_str("#include <time.h>\n#include <stdlib.h>\n");
+    harness.push_str(
+        "static int64_t bench_now(void) { struct timespec t; clock_gettime(CLOCK_MONOTONIC, &t); \
+         return (int64_t)t.tv_sec * 1000000000LL + t.tv_nsec; }\n",
+    );
+    for c in [
+        "stride_imu_t",
+        "stride_joint_trajectory_t",
+        "stride_point_cloud_t",
+    ] {
+        let _ = write!(
+            harness,
+            "int64_t c_bench_encode_{c}(const uint8_t *in, int len, int iters, uint8_t *out) {{\n\
+             \x20   {c} msg;\n\
+             \x20   if ({c}_decode(in, 0, len, &msg) != len) return -1;\n\
+             \x20   int64_t t0 = bench_now();\n\
+             \x20   for (int i = 0; i < iters; i++) {{\n\
+             \x20       int n = {c}_encoded_size(&msg);\n\
+             \x20       if ({c}_encode(out, 0, n, &msg) != n) return -2;\n\
+             \x20   }}\n\
+             \x20   int64_t t = bench_now() - t0;\n\
+             \x20   {c}_decode_cleanup(&msg);\n\
+             \x20   return t;\n}}\n\
+             int64_t c_bench_decode_{c}(const uint8_t *in, int len, int iters) {{\n\
+             \x20   int64_t t0 = bench_now();\n\
+             \x20   for (int i = 0; i < iters; i++) {{\n\
+             \x20       {c} msg;\n\
+             \x20       if ({c}_decode(in, 0, len, &msg) != len) return -1;\n\
+             \x20       {c}_decode_cleanup(&msg);\n\
+             \x20   }}\n\
+             \x20   return bench_now() - t0;\n}}\n"
+        );
+    }
     std::fs::write(cdir.join("harness.c"), harness).unwrap();
     std::fs::write(out.join("compat_decls.rs"), decls).unwrap();
     std::fs::write(out.join("compat_cases.rs"), cases).unwrap();
