@@ -21,6 +21,8 @@ extern "C" {
 }
 
 type CEncode = unsafe extern "C" fn(*const u8, i32, i32, *mut u8) -> i64;
+/// One benchmark case: runs its rounds and returns the message size and the figures.
+type Case = Box<dyn Fn(usize) -> (usize, Figures, Figures)>;
 type CDecode = unsafe extern "C" fn(*const u8, i32, i32) -> i64;
 
 fn header() -> HeaderT {
@@ -172,7 +174,7 @@ fn main() {
             if ok { "pass" } else { "FAIL" }
         );
     };
-    let cases: Vec<(&str, Box<dyn Fn(usize) -> (usize, Figures, Figures)>)> = vec![
+    let cases: Vec<(&str, Case)> = vec![
         (
             "small: stride.imu_t",
             Box::new(|rounds| {
