@@ -25,15 +25,11 @@ fn heartbeat_reports_state_and_counters_then_stopping() {
         })
         .unwrap();
     node.set_health(NodeStatusT::STATE_DEGRADED, "one sensor missing");
-    // The first beat went out at start (STARTING); wait for the next one (DEGRADED).
+    // Wait for a DEGRADED beat after the first one (which may have gone out before).
+    let later_degraded =
+        |m: &NodeStatusT| m.state == NodeStatusT::STATE_DEGRADED && m.header.sequence >= 1;
     let deadline = Instant::now() + Duration::from_secs(5);
-    while Instant::now() < deadline
-        && !got
-            .lock()
-            .unwrap()
-            .iter()
-            .any(|m| m.state == NodeStatusT::STATE_DEGRADED)
-    {
+    while Instant::now() < deadline && !got.lock().unwrap().iter().any(later_degraded) {
         node.lcm()
             .handle_timeout(Duration::from_millis(50))
             .unwrap();
@@ -41,7 +37,7 @@ fn heartbeat_reports_state_and_counters_then_stopping() {
     let beats = got.lock().unwrap().clone();
     let degraded = beats
         .iter()
-        .find(|m| m.state == NodeStatusT::STATE_DEGRADED)
+        .find(|m| later_degraded(m))
         .expect("a DEGRADED heartbeat");
     assert_eq!(degraded.node, "unit-node");
     assert_eq!(degraded.detail, "one sensor missing");
