@@ -95,26 +95,12 @@ impl Proc {
     }
 
     /// Sends SIGINT and waits (up to 10 s) for the exit; returns the status and stdout.
-    pub fn interrupt(mut self) -> (std::process::ExitStatus, String) {
-        let mut child = self.child.take().expect("running");
-        // SAFETY: plain kill(2) on our own child.
-        unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
-        let deadline = Instant::now() + Duration::from_secs(10);
-        loop {
-            if let Some(_st) = child.try_wait().expect("wait") {
-                break;
-            }
-            if Instant::now() > deadline {
-                let _ = child.kill();
-                panic!("{} did not stop on SIGINT", self.name);
-            }
-            std::thread::sleep(Duration::from_millis(10));
+    pub fn interrupt(self) -> (std::process::ExitStatus, String) {
+        if let Some(child) = &self.child {
+            // SAFETY: plain kill(2) on our own child.
+            unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
         }
-        let out = child.wait_with_output().expect("output");
-        (
-            out.status,
-            String::from_utf8_lossy(&out.stdout).into_owned(),
-        )
+        self.wait(Duration::from_secs(10))
     }
 
     /// Waits (up to `timeout`) for the process to exit by itself; returns status and stdout.
@@ -134,6 +120,21 @@ impl Proc {
             String::from_utf8_lossy(&out.stdout).into_owned(),
         )
     }
+}
+
+/// Runs `stride-ping` on `url` (`count` pings at `rate` Hz), checks that every echo came back
+/// and returns its output.
+pub fn ping_all_echoed(url: &str, count: u32, rate: u32) -> String {
+    let mut ping = Command::new(bin("stride-ping"));
+    ping.args(["--lcm-url", url, "--linger", "3", "--log-level", "warn"])
+        .args(["--count", &count.to_string(), "--rate", &rate.to_string()]);
+    let (st, out) = Proc::spawn(ping).wait(Duration::from_secs(30));
+    assert!(st.success(), "stride-ping failed: {out}");
+    assert!(
+        out.contains(&format!("{count} sent, {count} echoed (0 lost)")),
+        "{out}"
+    );
+    out
 }
 
 impl Drop for Proc {

@@ -46,22 +46,7 @@ fn two_process_round_trip_with_stride_apps() {
     echo.args(["--lcm-url", &url, "--log-level", "warn"]);
     let echo = Proc::spawn(echo);
     std::thread::sleep(Duration::from_millis(300));
-    let mut ping = Command::new(bin("stride-ping"));
-    ping.args([
-        "--lcm-url",
-        &url,
-        "--count",
-        "50",
-        "--rate",
-        "200",
-        "--linger",
-        "3",
-        "--log-level",
-        "warn",
-    ]);
-    let (st, out) = Proc::spawn(ping).wait(Duration::from_secs(30));
-    assert!(st.success(), "stride-ping failed: {out}");
-    assert!(out.contains("50 sent, 50 echoed (0 lost)"), "{out}");
+    stride_tests::ping_all_echoed(&url, 50, 200);
     let (st, out) = echo.interrupt();
     assert!(st.success(), "stride-echo did not shut down cleanly: {out}");
     assert!(out.contains("echoed 50 pings"), "{out}");

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use lcm::Lcm;
 use stride_lcmtypes::stride::{JointCommandT, JointStateT};
-use stride_tests::{bin, in_sandbox, udpm_url, Proc};
+use stride_tests::{in_sandbox, udpm_url, Proc};
 
 fn controller(url: &str) -> Proc {
     let mut c = Command::new(env!("STRIDE_LEGACY_CONTROLLER"));
@@ -22,22 +22,7 @@ fn stride_ping_round_trips_through_the_c_controller() {
     let url = udpm_url(7721);
     let ctl = controller(&url);
     std::thread::sleep(Duration::from_millis(300));
-    let mut ping = Command::new(bin("stride-ping"));
-    ping.args([
-        "--lcm-url",
-        &url,
-        "--count",
-        "30",
-        "--rate",
-        "100",
-        "--linger",
-        "3",
-        "--log-level",
-        "warn",
-    ]);
-    let (st, out) = Proc::spawn(ping).wait(Duration::from_secs(30));
-    assert!(st.success(), "{out}");
-    assert!(out.contains("30 sent, 30 echoed (0 lost)"), "{out}");
+    stride_tests::ping_all_echoed(&url, 30, 100);
     let (st, out) = ctl.interrupt();
     assert!(st.success(), "{out}");
     assert!(out.contains("30 pings"), "{out}");
