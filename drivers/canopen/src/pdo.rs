@@ -127,10 +127,11 @@ impl PdoConfig {
         v
     }
 
-    /// Splits a received PDO's data into the values of its entries (little-endian, sign
-    /// extension left to the caller); `None` when the frame is shorter than the mapping.
-    pub fn unpack(&self, data: &[u8]) -> Option<Vec<u32>> {
-        if data.len() < self.data_len() {
+    /// Splits a received PDO's data into the values of its entries (little-endian, up to 64
+    /// bits each, sign extension left to the caller); `None` when the frame is shorter than
+    /// the mapping or an entry is longer than 64 bits.
+    pub fn unpack(&self, data: &[u8]) -> Option<Vec<u64>> {
+        if data.len() < self.data_len() || self.entries.iter().any(|e| e.bits > 64) {
             return None;
         }
         let mut bit = 0usize;
@@ -138,9 +139,9 @@ impl PdoConfig {
         for e in &self.entries {
             let bytes = (e.bits as usize).div_ceil(8);
             let start = bit / 8;
-            let mut v = 0u32;
-            for (k, b) in data[start..start + bytes].iter().enumerate() {
-                v |= (*b as u32) << (8 * k);
+            let mut v = 0u64;
+            for (k, b) in data.get(start..start + bytes)?.iter().enumerate() {
+                v |= (*b as u64) << (8 * k);
             }
             out.push(v);
             bit += e.bits as usize;
@@ -148,11 +149,11 @@ impl PdoConfig {
         Some(out)
     }
 
-    /// Packs entry values into frame data.
-    pub fn pack(&self, values: &[u32]) -> Vec<u8> {
+    /// Packs entry values into frame data (each entry's low bytes, little-endian).
+    pub fn pack(&self, values: &[u64]) -> Vec<u8> {
         let mut out = Vec::with_capacity(self.data_len());
         for (e, v) in self.entries.iter().zip(values) {
-            let bytes = (e.bits as usize).div_ceil(8);
+            let bytes = (e.bits as usize).div_ceil(8).min(8);
             out.extend_from_slice(&v.to_le_bytes()[..bytes]);
         }
         out
@@ -198,6 +199,47 @@ mod tests {
         assert_eq!(data, [0x37, 0x06, 0xf6, 0xff, 0xff, 0xff]);
         assert_eq!(t.unpack(&data).unwrap(), vec![0x0637, 0xfffffff6]);
         assert!(t.unpack(&data[..5]).is_none());
+        let pvt = PdoConfig {
+            direction: Direction::Receive,
+            number: 3,
+            transmission: 255,
+            entries: vec![MapEntry {
+                index: 0x2001,
+                sub: 0,
+                bits: 64,
+            }],
+        };
+        assert_eq!(
+            pvt.unpack(&[1, 0, 0, 0, 0, 0, 0, 0x80]).unwrap(),
+            vec![0x8000_0000_0000_0001]
+        );
+        let bad = PdoConfig {
+            entries: vec![MapEntry {
+                index: 1,
+                sub: 0,
+                bits: 200,
+            }],
+            ..pvt
+        };
+        assert!(bad.unpack(&[0; 8]).is_none());
         assert_eq!(t.verification().len(), 3);
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn unpack_never_panics(
+            bits in proptest::collection::vec(0u8..=255, 0..10),
+            data in proptest::collection::vec(proptest::num::u8::ANY, 0..=8),
+        ) {
+            let cfg = PdoConfig {
+                direction: Direction::Receive,
+                number: 1,
+                transmission: 255,
+                entries: bits.iter().map(|b| MapEntry { index: 0x2000, sub: 0, bits: *b }).collect(),
+            };
+            if let Some(v) = cfg.unpack(&data) {
+                proptest::prop_assert_eq!(v.len(), bits.len());
+            }
+        }
     }
 }

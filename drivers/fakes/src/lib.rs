@@ -1,0 +1,4 @@
+//! Fake devices for tests without hardware. Each is driven only through its bus, as the real
+//! device would be: tests never reach inside.
+
+pub mod elmo;
