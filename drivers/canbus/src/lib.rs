@@ -1,7 +1,9 @@
-//! One CAN bus abstraction, [`CanBus`], with deadlines on every call, and [`MemBus`]: an
-//! in-memory bus with any number of nodes where each frame takes its real time on the wire at
-//! the chosen bit rate, so timing-sensitive code meets realistic delays and bus load is
-//! measured.
+//! One CAN bus abstraction, [`CanBus`], with deadlines on every call, and its backends:
+//! [`MemBus`], an in-memory bus with any number of nodes where each frame takes its real time
+//! on the wire at the chosen bit rate (so timing-sensitive code meets realistic delays and bus
+//! load is measured), and [`slcan::SlcanBus`], a USB2CAN dongle speaking SLCAN on a serial port.
+
+pub mod slcan;
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};

@@ -1,4 +1,5 @@
 //! Fake devices for tests without hardware. Each is driven only through its bus, as the real
 //! device would be: tests never reach inside.
 
+pub mod dongle;
 pub mod elmo;

@@ -1,0 +1,152 @@
+//! A USB2CAN dongle speaking SLCAN (Lawicel) on a serial port, as a [`CanBus`].
+
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+
+use stride_slcan::{BitRate, Command, LineSplitter, Message};
+
+use crate::{BusError, CanBus, CanFrame};
+
+/// Counters of an SLCAN link.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SlcanStats {
+    /// Frames sent.
+    pub sent: u64,
+    /// Frames received.
+    pub received: u64,
+    /// Lines that did not parse (noise on the line).
+    pub malformed: u64,
+    /// Commands the dongle refused (BEL).
+    pub refused: u64,
+}
+
+/// A dongle on a serial port, opened at a bit rate.
+pub struct SlcanBus<P: serialport::SerialPort> {
+    port: P,
+    split: LineSplitter,
+    frames: VecDeque<CanFrame>,
+    replies: VecDeque<Message>,
+    stats: SlcanStats,
+}
+
+impl<P: serialport::SerialPort> std::fmt::Debug for SlcanBus<P> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SlcanBus")
+            .field("stats", &self.stats)
+            .finish()
+    }
+}
+
+fn io(e: std::io::Error) -> BusError {
+    BusError::Device(e.to_string())
+}
+
+impl<P: serialport::SerialPort> SlcanBus<P> {
+    /// Closes the channel (in case it was open), sets the bit rate and opens it, as
+    /// `slcand -o -c -s8` does; each step must be acknowledged within `timeout`.
+    pub fn open(port: P, rate: BitRate, timeout: Duration) -> Result<SlcanBus<P>, BusError> {
+        let mut bus = SlcanBus {
+            port,
+            split: LineSplitter::new(),
+            frames: VecDeque::new(),
+            replies: VecDeque::new(),
+            stats: SlcanStats::default(),
+        };
+        // A close on a closed channel may be refused: only the answer matters, not its value.
+        bus.command(&Command::Close, timeout)?;
+        for c in [Command::Speed(rate), Command::Open] {
+            if !bus.command(&c, timeout)? {
+                return Err(BusError::Device(format!("dongle refused {c:?}")));
+            }
+        }
+        // Counters start with the open link (the close of a closed channel is refused).
+        bus.stats = SlcanStats::default();
+        Ok(bus)
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> SlcanStats {
+        self.stats
+    }
+
+    /// Sends a command and waits for its answer: true for CR, false for BEL.
+    pub fn command(&mut self, c: &Command, timeout: Duration) -> Result<bool, BusError> {
+        let bytes = c.encode().map_err(|e| BusError::Device(e.to_string()))?;
+        self.port.write_all(&bytes).map_err(io)?;
+        self.port.flush().map_err(io)?;
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(m) = self.replies.pop_front() {
+                return match m {
+                    Message::Ok | Message::Transmitted => Ok(true),
+                    Message::Error => {
+                        self.stats.refused += 1;
+                        Ok(false)
+                    }
+                    _ => Ok(true),
+                };
+            }
+            if Instant::now() >= deadline {
+                return Err(BusError::Timeout);
+            }
+            self.pump(deadline)?;
+        }
+    }
+
+    /// Reads what the port has (waiting at most until `deadline`) and sorts it into frames
+    /// and replies.
+    fn pump(&mut self, deadline: Instant) -> Result<(), BusError> {
+        let wait = deadline
+            .saturating_duration_since(Instant::now())
+            .max(Duration::from_millis(1));
+        self.port
+            .set_timeout(wait)
+            .map_err(|e| BusError::Device(e.to_string()))?;
+        let mut buf = [0u8; 256];
+        let n = match self.port.read(&mut buf) {
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => 0,
+            Err(e) => return Err(io(e)),
+        };
+        for line in self.split.push(&buf[..n]) {
+            match Message::parse(&line) {
+                Ok(Message::Frame(f, _)) => {
+                    self.stats.received += 1;
+                    self.frames.push_back(f);
+                }
+                Ok(m) => self.replies.push_back(m),
+                Err(_) => self.stats.malformed += 1,
+            }
+        }
+        Ok(())
+    }
+}
+
+impl<P: serialport::SerialPort> CanBus for SlcanBus<P> {
+    fn send(&mut self, frame: &CanFrame, deadline: Instant) -> Result<(), BusError> {
+        let ok = self.command(
+            &Command::Transmit(*frame),
+            deadline
+                .saturating_duration_since(Instant::now())
+                .max(Duration::from_millis(1)),
+        )?;
+        if ok {
+            self.stats.sent += 1;
+            Ok(())
+        } else {
+            Err(BusError::TxQueueFull)
+        }
+    }
+
+    fn recv(&mut self, deadline: Instant) -> Result<CanFrame, BusError> {
+        loop {
+            if let Some(f) = self.frames.pop_front() {
+                return Ok(f);
+            }
+            if Instant::now() >= deadline {
+                return Err(BusError::Timeout);
+            }
+            self.pump(deadline)?;
+        }
+    }
+}
