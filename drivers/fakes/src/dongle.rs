@@ -145,10 +145,10 @@ mod tests {
         let bus = MemBus::new(1_000_000);
         let stop = Arc::new(AtomicBool::new(false));
         let dongle = FakeDongle::new(dongle_end, bus.node()).spawn(stop.clone());
+        let mut host = SlcanBus::open(host_end, BitRate::M1, Duration::from_secs(1)).unwrap();
+        // The drive powers up once the dongle is open, so its boot-up message is seen.
         let drive =
             FakeElmo::new(ElmoConfig::new(5), Levers::default()).spawn(bus.node(), stop.clone());
-
-        let mut host = SlcanBus::open(host_end, BitRate::M1, Duration::from_secs(1)).unwrap();
         let node = NodeId::new(5).unwrap();
         // Boot-up message of the drive crosses the dongle.
         let deadline = Instant::now() + Duration::from_secs(2);
