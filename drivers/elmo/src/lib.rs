@@ -1,0 +1,849 @@
+//! Drives Elmo motion controllers over CANopen, generic over the CAN bus ([`CanBus`]):
+//! bring-up (boot-up, identity, heartbeat, PDO mapping verified by read-back, NMT start,
+//! CiA 402 enable), joint trajectories streamed as PVT rows while each drive's 64-row table is
+//! tracked, limits checked before anything is sent, joint states from the SYNC-driven TPDO,
+//! emergencies turned into events, quick stop and disable.
+
+use std::collections::HashMap;
+use std::time::{Duration, Instant};
+
+use stride_canbus::{BusError, CanBus, CanFrame};
+use stride_canopen::ds402::{self, State as DriveState};
+use stride_canopen::elmo::{Command as Interp, PvtQueue, PvtRow, Value, PVT_ROWS};
+use stride_canopen::emcy::{ElmoEmcy, Emcy};
+use stride_canopen::frame::{CobId, Function, NodeId};
+use stride_canopen::nmt;
+use stride_canopen::pdo::{Direction, MapEntry, PdoConfig};
+use stride_canopen::sdo::{self, Download, ServerResponse, Step, Upload};
+
+/// One joint: its drive and the conversion from radians to encoder counts.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointConfig {
+    /// Joint name (as in trajectories and joint states).
+    pub name: String,
+    /// CANopen node id of its drive.
+    pub node: u8,
+    /// Encoder counts per motor revolution.
+    pub counts_per_rev: f64,
+    /// Gear ratio (motor revolutions per joint revolution).
+    pub gear_ratio: f64,
+    /// Joint position limits, rad.
+    pub min_position: f64,
+    /// Upper position limit, rad.
+    pub max_position: f64,
+    /// Velocity limit, rad/s.
+    pub max_velocity: f64,
+    /// Acceleration limit, rad/s².
+    pub max_acceleration: f64,
+}
+
+impl JointConfig {
+    /// Encoder counts per joint radian.
+    pub fn counts_per_rad(&self) -> f64 {
+        self.counts_per_rev * self.gear_ratio / std::f64::consts::TAU
+    }
+}
+
+/// Why the master stopped or refused something.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MasterError {
+    /// The bus failed.
+    #[error("CAN bus: {0}")]
+    Bus(#[from] BusError),
+    /// A drive did not answer in time.
+    #[error("{joint} (node {node}): no answer to {what}")]
+    NoAnswer {
+        /// Joint.
+        joint: String,
+        /// Node id.
+        node: u8,
+        /// What was asked.
+        what: String,
+    },
+    /// A drive aborted an SDO transfer or answered out of protocol.
+    #[error("{joint} (node {node}): {error}")]
+    Sdo {
+        /// Joint.
+        joint: String,
+        /// Node id.
+        node: u8,
+        /// The SDO error.
+        error: sdo::SdoError,
+    },
+    /// A drive is not what the configuration says.
+    #[error("{joint} (node {node}): {what}")]
+    Identity {
+        /// Joint.
+        joint: String,
+        /// Node id.
+        node: u8,
+        /// What differs.
+        what: String,
+    },
+    /// A PDO mapping did not read back as written.
+    #[error(
+        "{joint} (node {node}): PDO mapping {index:#06x}:{sub} reads back {got:?}, wrote {want:?}"
+    )]
+    Mapping {
+        /// Joint.
+        joint: String,
+        /// Node id.
+        node: u8,
+        /// Object index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Expected.
+        want: Vec<u8>,
+        /// Read.
+        got: Vec<u8>,
+    },
+    /// A drive did not reach operation enabled.
+    #[error("{joint} (node {node}): stuck in {state:?} while enabling")]
+    Enable {
+        /// Joint.
+        joint: String,
+        /// Node id.
+        node: u8,
+        /// The state it stayed in.
+        state: DriveState,
+    },
+    /// A trajectory point is beyond a joint limit: the whole trajectory is refused.
+    #[error("row {row}, joint {joint}: {what}")]
+    Limit {
+        /// Row index.
+        row: usize,
+        /// Joint.
+        joint: String,
+        /// Which limit and by how much.
+        what: String,
+    },
+    /// The trajectory's shape is wrong (joint names, sizes, times).
+    #[error("bad trajectory: {0}")]
+    BadTrajectory(String),
+}
+
+/// A trajectory in joint space: rows of positions (and velocities) at times.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Trajectory {
+    /// Joint names, one per column.
+    pub joints: Vec<String>,
+    /// Seconds from the start to each row (strictly increasing).
+    pub times: Vec<f64>,
+    /// Positions, rad: `positions[row][joint]`.
+    pub positions: Vec<Vec<f64>>,
+    /// Velocities, rad/s (PVT), same shape; empty for PT (velocities then derived).
+    pub velocities: Vec<Vec<f64>>,
+}
+
+/// What the master reports while running.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// A drive sent an emergency.
+    Emergency {
+        /// Joint.
+        joint: String,
+        /// Description.
+        text: String,
+        /// The raw message.
+        emcy: Emcy,
+    },
+    /// A drive's heartbeat stopped.
+    HeartbeatLost {
+        /// Joint.
+        joint: String,
+    },
+}
+
+/// The measured state of one joint.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct JointState {
+    /// Position, rad.
+    pub position: f64,
+    /// CiA 402 statusword.
+    pub statusword: u16,
+    /// When the last TPDO arrived.
+    pub updated: Option<Instant>,
+}
+
+struct Axis {
+    cfg: JointConfig,
+    node: NodeId,
+    queue: PvtQueue,
+    state: JointState,
+    last_heartbeat: Option<Instant>,
+    heartbeat_lost: bool,
+    rows_pending: Vec<PvtRow>,
+    started: bool,
+}
+
+/// Settings of the master.
+#[derive(Debug, Clone)]
+pub struct MasterConfig {
+    /// Time allowed for each SDO exchange.
+    pub sdo_timeout: Duration,
+    /// Heartbeat period the drives are told to use; lost after three periods.
+    pub heartbeat: Duration,
+}
+
+impl Default for MasterConfig {
+    fn default() -> Self {
+        MasterConfig {
+            sdo_timeout: Duration::from_millis(200),
+            heartbeat: Duration::from_millis(100),
+        }
+    }
+}
+
+/// The CANopen master of a set of Elmo drives.
+pub struct Master<B: CanBus> {
+    bus: B,
+    cfg: MasterConfig,
+    axes: Vec<Axis>,
+    by_node: HashMap<u8, usize>,
+    events: Vec<Event>,
+}
+
+/// The PVT RPDO: RPDO3 carrying object 0x2001 (one row per frame).
+fn pvt_rpdo() -> PdoConfig {
+    PdoConfig {
+        direction: Direction::Receive,
+        number: 3,
+        transmission: 255,
+        entries: vec![MapEntry {
+            index: stride_canopen::elmo::PVT_OBJECT,
+            sub: 0,
+            bits: 64,
+        }],
+    }
+}
+
+/// The state TPDO: TPDO1 with statusword and actual position, on every SYNC.
+fn state_tpdo() -> PdoConfig {
+    PdoConfig {
+        direction: Direction::Transmit,
+        number: 1,
+        transmission: 1,
+        entries: vec![
+            MapEntry {
+                index: ds402::STATUSWORD,
+                sub: 0,
+                bits: 16,
+            },
+            MapEntry {
+                index: ds402::POSITION_ACTUAL,
+                sub: 0,
+                bits: 32,
+            },
+        ],
+    }
+}
+
+impl<B: CanBus> Master<B> {
+    /// A master for `joints` on `bus`.
+    pub fn new(
+        bus: B,
+        joints: Vec<JointConfig>,
+        cfg: MasterConfig,
+    ) -> Result<Master<B>, MasterError> {
+        let mut axes = Vec::new();
+        let mut by_node = HashMap::new();
+        for j in joints {
+            let node = NodeId::new(j.node).map_err(|_| MasterError::Identity {
+                joint: j.name.clone(),
+                node: j.node,
+                what: "node id outside 1..=127".into(),
+            })?;
+            if by_node.insert(j.node, axes.len()).is_some() {
+                return Err(MasterError::Identity {
+                    joint: j.name.clone(),
+                    node: j.node,
+                    what: "node id used twice".into(),
+                });
+            }
+            axes.push(Axis {
+                cfg: j,
+                node,
+                queue: PvtQueue::new(PVT_ROWS),
+                state: JointState::default(),
+                last_heartbeat: None,
+                heartbeat_lost: false,
+                rows_pending: Vec::new(),
+                started: false,
+            });
+        }
+        Ok(Master {
+            bus,
+            cfg,
+            axes,
+            by_node,
+            events: Vec::new(),
+        })
+    }
+
+    /// The joints' measured states, in configuration order.
+    pub fn states(&self) -> Vec<(&str, JointState)> {
+        self.axes
+            .iter()
+            .map(|a| (a.cfg.name.as_str(), a.state))
+            .collect()
+    }
+
+    /// Events since the last call.
+    pub fn take_events(&mut self) -> Vec<Event> {
+        std::mem::take(&mut self.events)
+    }
+
+    fn send(&mut self, f: &CanFrame) -> Result<(), MasterError> {
+        Ok(self.bus.send(f, Instant::now() + self.cfg.sdo_timeout)?)
+    }
+
+    /// One SDO exchange with axis `a`; other frames seen meanwhile are processed.
+    fn sdo(&mut self, a: usize, req: sdo::ClientRequest) -> Result<ServerResponse, MasterError> {
+        let node = self.axes[a].node;
+        let frame = req.encode(node).expect("valid request");
+        self.send(&frame)?;
+        let deadline = Instant::now() + self.cfg.sdo_timeout;
+        let want = CobId::of(Function::SdoTx, node).raw() as u32;
+        loop {
+            let f = match self.bus.recv(deadline) {
+                Ok(f) => f,
+                Err(BusError::Timeout) => {
+                    return Err(MasterError::NoAnswer {
+                        joint: self.axes[a].cfg.name.clone(),
+                        node: node.get(),
+                        what: format!("{req:?}"),
+                    })
+                }
+                Err(e) => return Err(e.into()),
+            };
+            if f.raw_id() == want {
+                if let Ok((_, resp)) = ServerResponse::decode(&f) {
+                    return Ok(resp);
+                }
+            } else {
+                self.on_frame(&f, Instant::now());
+            }
+        }
+    }
+
+    fn sdo_error(&self, a: usize, error: sdo::SdoError) -> MasterError {
+        MasterError::Sdo {
+            joint: self.axes[a].cfg.name.clone(),
+            node: self.axes[a].node.get(),
+            error,
+        }
+    }
+
+    /// Writes an object of axis `a`.
+    pub fn write(
+        &mut self,
+        a: usize,
+        index: u16,
+        sub: u8,
+        data: Vec<u8>,
+    ) -> Result<(), MasterError> {
+        let mut dl = Download::new(index, sub, data);
+        let mut req = dl.start();
+        loop {
+            let resp = self.sdo(a, req)?;
+            match dl.on_response(&resp).map_err(|e| self.sdo_error(a, e))? {
+                Step::Send(r) => req = r,
+                Step::Done(_) => return Ok(()),
+            }
+        }
+    }
+
+    /// Reads an object of axis `a`.
+    pub fn read(&mut self, a: usize, index: u16, sub: u8) -> Result<Vec<u8>, MasterError> {
+        let mut up = Upload::new(index, sub, 1024);
+        let mut req = up.start();
+        loop {
+            let resp = self.sdo(a, req)?;
+            match up.on_response(&resp).map_err(|e| self.sdo_error(a, e))? {
+                Step::Send(r) => req = r,
+                Step::Done(d) => return Ok(d),
+            }
+        }
+    }
+
+    fn statusword(&mut self, a: usize) -> Result<u16, MasterError> {
+        let d = self.read(a, ds402::STATUSWORD, 0)?;
+        Ok(u16::from_le_bytes([d[0], *d.get(1).unwrap_or(&0)]))
+    }
+
+    /// Brings every drive up: identity (CiA 402 device), heartbeat, PDO mapping written and
+    /// verified, NMT operational, CiA 402 operation enabled with the motor on.
+    pub fn bring_up(&mut self) -> Result<(), MasterError> {
+        for a in 0..self.axes.len() {
+            let (name, node) = (self.axes[a].cfg.name.clone(), self.axes[a].node);
+            let ident = |what: String| MasterError::Identity {
+                joint: name.clone(),
+                node: node.get(),
+                what,
+            };
+            let dt = self.read(a, 0x1000, 0)?;
+            let device = u32::from_le_bytes(
+                dt.get(..4)
+                    .and_then(|b| b.try_into().ok())
+                    .ok_or_else(|| ident("short device type".into()))?,
+            );
+            if device & 0xffff != 402 {
+                return Err(ident(format!(
+                    "device type {device:#010x} is not a CiA 402 drive"
+                )));
+            }
+            let hb = self.cfg.heartbeat.as_millis() as u16;
+            self.write(a, 0x1017, 0, hb.to_le_bytes().to_vec())?;
+            for pdo in [pvt_rpdo(), state_tpdo()] {
+                for (i, s, v) in pdo.sdo_writes(node) {
+                    self.write(a, i, s, v)?;
+                }
+                for (i, s, want) in pdo.verification() {
+                    let got = self.read(a, i, s)?;
+                    if got != want {
+                        return Err(MasterError::Mapping {
+                            joint: name.clone(),
+                            node: node.get(),
+                            index: i,
+                            sub: s,
+                            want,
+                            got,
+                        });
+                    }
+                }
+            }
+            self.send(&nmt::encode(nmt::Command::Start, node.get()))?;
+            self.enable(a)?;
+        }
+        Ok(())
+    }
+
+    fn enable(&mut self, a: usize) -> Result<(), MasterError> {
+        for _ in 0..6 {
+            let state = DriveState::from_statusword(self.statusword(a)?);
+            match ds402::step_towards(state, DriveState::OperationEnabled) {
+                None if state == DriveState::OperationEnabled => return Ok(()),
+                None => break,
+                Some(cmd) => self.write(
+                    a,
+                    ds402::CONTROLWORD,
+                    0,
+                    cmd.controlword().to_le_bytes().to_vec(),
+                )?,
+            }
+        }
+        let state = DriveState::from_statusword(self.statusword(a)?);
+        if state == DriveState::OperationEnabled {
+            Ok(())
+        } else {
+            Err(MasterError::Enable {
+                joint: self.axes[a].cfg.name.clone(),
+                node: self.axes[a].node.get(),
+                state,
+            })
+        }
+    }
+
+    /// Checks a trajectory against every joint's limits; nothing is clipped.
+    pub fn validate(&self, t: &Trajectory) -> Result<Vec<usize>, MasterError> {
+        let cols: Vec<usize> = t
+            .joints
+            .iter()
+            .map(|j| {
+                self.axes
+                    .iter()
+                    .position(|a| &a.cfg.name == j)
+                    .ok_or_else(|| MasterError::BadTrajectory(format!("unknown joint {j}")))
+            })
+            .collect::<Result<_, _>>()?;
+        if t.times.len() != t.positions.len() || t.times.len() < 2 {
+            return Err(MasterError::BadTrajectory(
+                "need at least two rows, one time per row".into(),
+            ));
+        }
+        if !t.velocities.is_empty() && t.velocities.len() != t.positions.len() {
+            return Err(MasterError::BadTrajectory(
+                "velocities and positions differ in rows".into(),
+            ));
+        }
+        for (r, row) in t.positions.iter().enumerate() {
+            if row.len() != cols.len() || t.velocities.get(r).is_some_and(|v| v.len() != cols.len())
+            {
+                return Err(MasterError::BadTrajectory(format!(
+                    "row {r} has the wrong number of joints"
+                )));
+            }
+            if r > 0 {
+                let dt = t.times[r] - t.times[r - 1];
+                if !(0.001..=0.255).contains(&dt) {
+                    return Err(MasterError::BadTrajectory(format!(
+                        "row {r}: {dt} s between rows; PVT rows are 1 to 255 ms apart"
+                    )));
+                }
+            }
+            for (c, &a) in cols.iter().enumerate() {
+                let j = &self.axes[a].cfg;
+                let limit = |what: String| MasterError::Limit {
+                    row: r,
+                    joint: j.name.clone(),
+                    what,
+                };
+                let p = row[c];
+                if !(j.min_position..=j.max_position).contains(&p) || !p.is_finite() {
+                    return Err(limit(format!(
+                        "position {p:.4} rad outside [{}, {}]",
+                        j.min_position, j.max_position
+                    )));
+                }
+                let v = self.velocity(t, r, c);
+                if v.abs() > j.max_velocity || !v.is_finite() {
+                    return Err(limit(format!(
+                        "velocity {v:.4} rad/s beyond {}",
+                        j.max_velocity
+                    )));
+                }
+                if r > 0 {
+                    let acc = (v - self.velocity(t, r - 1, c)) / (t.times[r] - t.times[r - 1]);
+                    if acc.abs() > j.max_acceleration {
+                        return Err(limit(format!(
+                            "acceleration {acc:.3} rad/s² beyond {}",
+                            j.max_acceleration
+                        )));
+                    }
+                }
+            }
+        }
+        Ok(cols)
+    }
+
+    fn velocity(&self, t: &Trajectory, r: usize, c: usize) -> f64 {
+        if let Some(v) = t.velocities.get(r) {
+            return v[c];
+        }
+        // PT: central differences, zero at both ends.
+        if r == 0 || r + 1 == t.positions.len() {
+            return 0.0;
+        }
+        (t.positions[r + 1][c] - t.positions[r - 1][c]) / (t.times[r + 1] - t.times[r - 1])
+    }
+
+    /// Validates a trajectory and queues it as PVT rows for each joint; rows go out as the
+    /// drives' tables have room (see [`Master::pump`]).
+    pub fn load(&mut self, t: &Trajectory) -> Result<(), MasterError> {
+        let cols = self.validate(t)?;
+        for (c, &a) in cols.iter().enumerate() {
+            let k = self.axes[a].cfg.counts_per_rad();
+            let mut rows = Vec::with_capacity(t.times.len());
+            for r in 0..t.times.len() {
+                let dt = if r + 1 < t.times.len() {
+                    t.times[r + 1] - t.times[r]
+                } else {
+                    0.010
+                };
+                rows.push(PvtRow {
+                    position: (t.positions[r][c] * k).round() as i32,
+                    velocity: (self.velocity(t, r, c) * k).round() as i32,
+                    time_ms: (dt * 1000.0).round().clamp(1.0, 255.0) as u8,
+                });
+            }
+            // A final row holding the last position keeps the drive from running dry.
+            if let Some(last) = rows.last().copied() {
+                rows.push(PvtRow {
+                    velocity: 0,
+                    ..last
+                });
+            }
+            self.axes[a].rows_pending.extend(rows);
+        }
+        Ok(())
+    }
+
+    /// Sends queued rows while the drives have room, starts motion once rows are loaded,
+    /// sends a SYNC, and processes what arrived. Call it every cycle.
+    pub fn pump(&mut self, now: Instant) -> Result<(), MasterError> {
+        for a in 0..self.axes.len() {
+            let node = self.axes[a].node;
+            let cob = pvt_rpdo().cob_id(node);
+            let mut bus_full = false;
+            while !self.axes[a].rows_pending.is_empty() && self.axes[a].queue.room() > 0 {
+                let row = self.axes[a].rows_pending[0];
+                let f = CanFrame::standard(cob, &row.bytes().expect("validated row"))
+                    .expect("valid frame");
+                match self.bus.send(&f, now + self.cfg.sdo_timeout) {
+                    Ok(()) => {
+                        self.axes[a].rows_pending.remove(0);
+                        self.axes[a].queue.push();
+                    }
+                    // The controller's queue is full: the rest waits for the next cycle.
+                    Err(BusError::TxQueueFull) => {
+                        bus_full = true;
+                        break;
+                    }
+                    Err(e) => return Err(e.into()),
+                }
+            }
+            let loaded = self.axes[a].queue.pending() >= 2
+                && (self.axes[a].rows_pending.is_empty() || self.axes[a].queue.room() == 0);
+            if !self.axes[a].started && loaded && !bus_full {
+                let bg = Interp::set(b"BG", 0, Value::Int(0))
+                    .encode(node)
+                    .expect("valid command");
+                match self.bus.send(&bg, now + self.cfg.sdo_timeout) {
+                    Ok(()) => self.axes[a].started = true,
+                    Err(BusError::TxQueueFull) => {}
+                    Err(e) => return Err(e.into()),
+                }
+            }
+        }
+        match self.bus.send(
+            &stride_canopen::sync::encode(None),
+            now + self.cfg.sdo_timeout,
+        ) {
+            Ok(()) | Err(BusError::TxQueueFull) => {}
+            Err(e) => return Err(e.into()),
+        }
+        while let Ok(Some(f)) = self.bus.try_recv() {
+            self.on_frame(&f, now);
+        }
+        let lost_after = self.cfg.heartbeat * 3;
+        for a in 0..self.axes.len() {
+            let ax = &mut self.axes[a];
+            if let Some(t) = ax.last_heartbeat {
+                if !ax.heartbeat_lost && now.saturating_duration_since(t) > lost_after {
+                    ax.heartbeat_lost = true;
+                    self.events.push(Event::HeartbeatLost {
+                        joint: ax.cfg.name.clone(),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// True when every joint has executed all its rows.
+    pub fn idle(&self) -> bool {
+        self.axes
+            .iter()
+            .all(|a| a.rows_pending.is_empty() && (!a.started || a.queue.pending() == 0))
+    }
+
+    fn on_frame(&mut self, f: &CanFrame, now: Instant) {
+        let Some(cob) = CobId::parse(f.raw_id() as u16) else {
+            return;
+        };
+        let Some(&a) = cob.node.and_then(|n| self.by_node.get(&n.get())) else {
+            return;
+        };
+        match cob.function {
+            Function::Tpdo(1) => {
+                if let Some(v) = state_tpdo().unpack(f.data()) {
+                    let ax = &mut self.axes[a];
+                    ax.state.statusword = v[0] as u16;
+                    ax.state.position = v[1] as u32 as i32 as f64 / ax.cfg.counts_per_rad();
+                    ax.state.updated = Some(now);
+                }
+            }
+            Function::Heartbeat => {
+                let ax = &mut self.axes[a];
+                ax.last_heartbeat = Some(now);
+                ax.heartbeat_lost = false;
+            }
+            Function::Emcy => {
+                if let Ok(e) = Emcy::decode(f) {
+                    if let Some(ElmoEmcy::QueueLow { read, .. }) = ElmoEmcy::from_emcy(&e) {
+                        self.axes[a].queue.on_read_pointer(read);
+                    }
+                    if let Some(ElmoEmcy::MotionTerminated { reason: 3, .. }) =
+                        ElmoEmcy::from_emcy(&e)
+                    {
+                        // Underflow: every row written has been played.
+                        let ax = &mut self.axes[a];
+                        while ax.queue.pending() > 0 {
+                            let done = ax.queue.pending();
+                            ax.queue
+                                .on_read_pointer(((ax.queue.pending() as u16) % PVT_ROWS) + 1);
+                            if ax.queue.pending() == done {
+                                ax.queue = PvtQueue::new(PVT_ROWS);
+                                break;
+                            }
+                        }
+                        ax.started = false;
+                    }
+                    self.events.push(Event::Emergency {
+                        joint: self.axes[a].cfg.name.clone(),
+                        text: e.describe(),
+                        emcy: e,
+                    });
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Quick stop on every drive (controlword 0x0002): a controlled stop.
+    pub fn quick_stop(&mut self) -> Result<(), MasterError> {
+        for a in 0..self.axes.len() {
+            self.axes[a].rows_pending.clear();
+            self.write(
+                a,
+                ds402::CONTROLWORD,
+                0,
+                ds402::Command::QuickStop
+                    .controlword()
+                    .to_le_bytes()
+                    .to_vec(),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Disables every drive (torque off) and stops the nodes.
+    pub fn disable(&mut self) -> Result<(), MasterError> {
+        for a in 0..self.axes.len() {
+            self.write(
+                a,
+                ds402::CONTROLWORD,
+                0,
+                ds402::Command::DisableVoltage
+                    .controlword()
+                    .to_le_bytes()
+                    .to_vec(),
+            )?;
+        }
+        self.send(&nmt::encode(nmt::Command::EnterPreOperational, 0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    use stride_canbus::MemBus;
+    use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
+
+    fn joint(i: u8) -> JointConfig {
+        JointConfig {
+            name: format!("j{i}"),
+            node: i,
+            counts_per_rev: 4096.0,
+            gear_ratio: 100.0,
+            min_position: -1.5,
+            max_position: 1.5,
+            max_velocity: 3.0,
+            max_acceleration: 60.0,
+        }
+    }
+
+    fn sine(joints: usize, rows: usize) -> Trajectory {
+        let dt = 0.01;
+        let w = std::f64::consts::TAU / (dt * (rows - 1) as f64);
+        Trajectory {
+            joints: (1..=joints).map(|i| format!("j{i}")).collect(),
+            times: (0..rows).map(|r| r as f64 * dt).collect(),
+            positions: (0..rows)
+                .map(|r| {
+                    (0..joints)
+                        .map(|j| 0.3 * (j + 1) as f64 / joints as f64 * (w * r as f64 * dt).sin())
+                        .collect()
+                })
+                .collect(),
+            velocities: (0..rows)
+                .map(|r| {
+                    (0..joints)
+                        .map(|j| {
+                            0.3 * (j + 1) as f64 / joints as f64 * w * (w * r as f64 * dt).cos()
+                        })
+                        .collect()
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn six_drives_walk_a_trajectory() {
+        let bus = MemBus::new(1_000_000);
+        let stop = Arc::new(AtomicBool::new(false));
+        let drives: Vec<_> = (1..=6)
+            .map(|i| {
+                FakeElmo::new(ElmoConfig::new(i), Levers::default()).spawn(bus.node(), stop.clone())
+            })
+            .collect();
+        let mut m = Master::new(
+            bus.node(),
+            (1..=6).map(joint).collect(),
+            MasterConfig::default(),
+        )
+        .unwrap();
+        m.bring_up().unwrap();
+        // 150 rows (1.5 s), more than the 64-row tables hold: refilled as the drives play.
+        let t = sine(6, 150);
+        m.load(&t).unwrap();
+        let deadline = Instant::now() + Duration::from_secs(10);
+        let mut max_err: f64 = 0.0;
+        while !m.idle() && Instant::now() < deadline {
+            m.pump(Instant::now()).unwrap();
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!(m.idle(), "trajectory not finished");
+        std::thread::sleep(Duration::from_millis(60));
+        m.pump(Instant::now()).unwrap();
+        for (i, (name, s)) in m.states().into_iter().enumerate() {
+            let want = *t.positions.last().unwrap().get(i).unwrap();
+            max_err = max_err.max((s.position - want).abs());
+            assert!(s.updated.is_some(), "{name}: no state");
+        }
+        assert!(max_err < 1e-3, "final error {max_err} rad");
+        let underflows = m
+            .take_events()
+            .iter()
+            .filter(|e| matches!(e, Event::Emergency { emcy, .. } if matches!(ElmoEmcy::from_emcy(emcy), Some(ElmoEmcy::MotionTerminated { reason: 3, .. }))))
+            .count();
+        assert_eq!(underflows, 6, "each drive ends its trajectory once");
+        m.disable().unwrap();
+        stop.store(true, Ordering::Relaxed);
+        for d in drives {
+            d.join().unwrap();
+        }
+    }
+
+    #[test]
+    fn limits_refuse_the_whole_trajectory() {
+        let bus = MemBus::new(1_000_000);
+        let m = Master::new(
+            bus.node(),
+            (1..=2).map(joint).collect(),
+            MasterConfig::default(),
+        )
+        .unwrap();
+        let mut t = sine(2, 150);
+        t.positions[5][1] = 2.0;
+        let e = m.validate(&t).unwrap_err();
+        assert!(matches!(e, MasterError::Limit { row: 5, .. }), "{e}");
+        let mut t = sine(2, 150);
+        t.velocities[3][0] = 10.0;
+        assert!(matches!(
+            m.validate(&t),
+            Err(MasterError::Limit { row: 3, .. })
+        ));
+        let mut t = sine(2, 150);
+        t.joints[1] = "nope".into();
+        assert!(matches!(m.validate(&t), Err(MasterError::BadTrajectory(_))));
+        assert!(m.validate(&sine(2, 150)).is_ok());
+    }
+
+    #[test]
+    fn a_missing_drive_is_a_clear_error() {
+        let bus = MemBus::new(1_000_000);
+        let cfg = MasterConfig {
+            sdo_timeout: Duration::from_millis(50),
+            ..Default::default()
+        };
+        let mut m = Master::new(bus.node(), vec![joint(9)], cfg).unwrap();
+        let e = m.bring_up().unwrap_err();
+        assert!(matches!(e, MasterError::NoAnswer { node: 9, .. }), "{e}");
+        assert!(e.to_string().contains("j9 (node 9)"));
+    }
+}
