@@ -44,6 +44,15 @@ pub trait CanBus {
     }
 }
 
+impl<T: CanBus + ?Sized> CanBus for Box<T> {
+    fn send(&mut self, frame: &CanFrame, deadline: Instant) -> Result<(), BusError> {
+        (**self).send(frame, deadline)
+    }
+    fn recv(&mut self, deadline: Instant) -> Result<CanFrame, BusError> {
+        (**self).recv(deadline)
+    }
+}
+
 /// Counters of a [`MemBus`].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct BusStats {

@@ -1,0 +1,152 @@
+//! `stride-elmo-bridge`: joint trajectories from LCM to Elmo drives on CAN, joint states back.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use clap::Parser;
+use stride_canbus::{CanBus, MemBus};
+use stride_elmo::{Event, Master, MasterConfig};
+use stride_elmo_bridge::{state_msg, trajectory_from_msg, BridgeConfig, Watchdog};
+use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
+use stride_lcmtypes::stride::{JointTrajectoryT, NodeStatusT};
+use stride_node::{load_config, Node, NodeArgs, Stamper};
+
+/// Drive Elmo motion controllers over CANopen from LCM joint trajectories.
+///
+/// At start it brings every configured drive up (identity, heartbeat, PDO mapping verified,
+/// CiA 402 enable) and refuses to run otherwise. Trajectories (stride.joint_trajectory_t) are
+/// checked against every joint's position, velocity and acceleration limits (a trajectory past
+/// a limit is rejected whole and reported, never clipped) and streamed as PVT rows. Joint
+/// states are published at the configured rate. When motion is under way and the trajectory
+/// stream stops for longer than stream_timeout_ms, every axis quick-stops. On shutdown the
+/// drives are disabled. With bus = "sim" six fake drives run in this process.
+#[derive(Parser, Debug)]
+#[command(version, about, long_about)]
+struct Cli {
+    #[command(flatten)]
+    node: NodeArgs,
+}
+
+type Sim = (Arc<AtomicBool>, Vec<JoinHandle<FakeElmo>>);
+
+fn open_bus(cfg: &BridgeConfig) -> anyhow::Result<(Box<dyn CanBus + Send>, Option<Sim>)> {
+    if cfg.bus == "sim" {
+        let bus = MemBus::new(cfg.bitrate);
+        let stop = Arc::new(AtomicBool::new(false));
+        let drives = cfg
+            .joint
+            .iter()
+            .map(|j| {
+                FakeElmo::new(ElmoConfig::new(j.node), Levers::default())
+                    .spawn(bus.node(), stop.clone())
+            })
+            .collect();
+        return Ok((Box::new(bus.node()), Some((stop, drives))));
+    }
+    if let Some(path) = cfg.bus.strip_prefix("slcan:") {
+        let port = serialport::new(path, 115_200)
+            .timeout(Duration::from_millis(10))
+            .open_native()
+            .with_context(|| format!("opening {path}"))?;
+        let rate = stride_slcan::BitRate::from_bits_per_second(cfg.bitrate)
+            .with_context(|| format!("{} bit/s is not an SLCAN rate", cfg.bitrate))?;
+        let bus = stride_canbus::slcan::SlcanBus::open(port, rate, Duration::from_secs(1))
+            .with_context(|| format!("opening the SLCAN dongle on {path}"))?;
+        return Ok((Box::new(bus), None));
+    }
+    bail!(
+        "unknown bus {:?}: use \"sim\" or \"slcan:/dev/ttyACM0\"",
+        cfg.bus
+    )
+}
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    let cfg: BridgeConfig = load_config(cli.node.config.as_deref())?;
+    cfg.check().map_err(anyhow::Error::msg)?;
+    let node = Node::start("stride-elmo-bridge", &cli.node)?;
+    node.set_health(NodeStatusT::STATE_STARTING, "bringing up the drives");
+    let (bus, sim) = open_bus(&cfg)?;
+    let mut master = Master::new(bus, cfg.joint.clone(), MasterConfig::default())?;
+    if let Err(e) = master.bring_up() {
+        node.set_health(NodeStatusT::STATE_FAULT, format!("bring-up failed: {e}"));
+        tracing::error!(error = %e, "bring-up failed");
+        return Err(e.into());
+    }
+    tracing::info!(
+        joints = cfg.joint.len(),
+        bus = cfg.bus.as_str(),
+        "drives enabled"
+    );
+    node.set_running();
+
+    let (tx, rx) = mpsc::channel::<JointTrajectoryT>();
+    let _sub = node
+        .lcm()
+        .subscribe(&cfg.trajectory_channel, move |_, m: JointTrajectoryT| {
+            let _ = tx.send(m);
+        })?;
+    let publisher = node.publisher();
+    let mut stamper = Stamper::new("");
+    let mut watchdog = Watchdog::new(cfg.stream_timeout_ms);
+    let period = Duration::from_secs_f64(1.0 / cfg.state_rate_hz);
+    let mut next = Instant::now();
+    let mut rejected = 0u64;
+    while node.running() {
+        let now = Instant::now();
+        if now < next {
+            node.lcm().handle_timeout(next - now)?;
+            continue;
+        }
+        next += period;
+        while let Ok(m) = rx.try_recv() {
+            match master.load(&trajectory_from_msg(&m)) {
+                Ok(()) => watchdog.feed(now),
+                Err(e) => {
+                    rejected += 1;
+                    tracing::warn!(error = %e, rejected, "trajectory rejected");
+                    node.set_health(
+                        NodeStatusT::STATE_DEGRADED,
+                        format!("trajectory rejected: {e}"),
+                    );
+                }
+            }
+        }
+        master.pump(now)?;
+        for e in master.take_events() {
+            match &e {
+                Event::Emergency { joint, text, .. } => {
+                    tracing::warn!(joint = joint.as_str(), "emergency: {text}")
+                }
+                Event::HeartbeatLost { joint } => {
+                    tracing::error!(joint = joint.as_str(), "heartbeat lost");
+                    node.set_health(NodeStatusT::STATE_FAULT, format!("{joint}: heartbeat lost"));
+                }
+            }
+        }
+        if watchdog.expired(now, master.idle()) {
+            tracing::warn!("trajectory stream stopped mid-motion: quick stop");
+            master.quick_stop()?;
+            node.set_health(
+                NodeStatusT::STATE_DEGRADED,
+                "trajectory stream stopped: quick stop",
+            );
+        }
+        let msg = state_msg(&master.states(), stamper.stamp());
+        if let Err(e) = publisher.publish(&cfg.state_channel, &msg) {
+            tracing::warn!(error = %e, "could not publish joint states");
+        }
+    }
+    tracing::info!("disabling the drives");
+    master.disable()?;
+    if let Some((stop, drives)) = sim {
+        stop.store(true, Ordering::Relaxed);
+        for d in drives {
+            let _ = d.join();
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,190 @@
+//! stride-elmo-bridge as a process: six simulated Elmo drives of Archie's left leg driven from
+//! LCM, joint states back, limits, the stream watchdog and shutdown.
+
+use std::path::PathBuf;
+use std::process::Command;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use lcm::Lcm;
+use stride_lcmtypes::stride::{JointStateT, JointTrajectoryT, NodeStatusT};
+use stride_tests::{bin, in_sandbox, udpm_url, Proc};
+
+const JOINTS: [&str; 6] = [
+    "left_hip_yaw",
+    "left_hip_roll",
+    "left_hip_pitch",
+    "left_knee",
+    "left_ankle_pitch",
+    "left_ankle_roll",
+];
+
+fn config() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../config/robots/archie-left-leg.toml")
+}
+
+/// A smooth move from 0 to `amp` (scaled per joint; the knee only bends forward) in `secs`.
+fn trajectory(secs: f64, amp: f64) -> JointTrajectoryT {
+    let dt = 0.01;
+    let rows = (secs / dt) as usize + 1;
+    let scale = [0.2, 0.2, -0.5, 1.0, 0.4, 0.2];
+    let s = |t: f64| (1.0 - (std::f64::consts::PI * t / secs).cos()) / 2.0;
+    let ds = |t: f64| std::f64::consts::PI / secs * (std::f64::consts::PI * t / secs).sin() / 2.0;
+    JointTrajectoryT {
+        mode: JointTrajectoryT::MODE_PVT,
+        num_joints: 6,
+        joint_names: JOINTS.iter().map(|s| s.to_string()).collect(),
+        num_rows: rows as i32,
+        time_from_start: (0..rows).map(|r| r as f64 * dt).collect(),
+        positions: (0..rows)
+            .map(|r| scale.iter().map(|k| k * amp * s(r as f64 * dt)).collect())
+            .collect(),
+        velocities: (0..rows)
+            .map(|r| scale.iter().map(|k| k * amp * ds(r as f64 * dt)).collect())
+            .collect(),
+        ..Default::default()
+    }
+}
+
+struct Watch {
+    states: Arc<Mutex<Vec<JointStateT>>>,
+    status: Arc<Mutex<Vec<NodeStatusT>>>,
+    _subs: Vec<lcm::Subscription>,
+}
+
+fn watch(lcm: &Lcm) -> Watch {
+    let states = Arc::new(Mutex::new(Vec::new()));
+    let status = Arc::new(Mutex::new(Vec::new()));
+    let (s1, s2) = (states.clone(), status.clone());
+    let subs = vec![
+        lcm.subscribe("JOINT_STATE_LEFT_LEG", move |_, m: JointStateT| {
+            s1.lock().unwrap().push(m)
+        })
+        .unwrap(),
+        lcm.subscribe("STRIDE_STATUS", move |_, m: NodeStatusT| {
+            s2.lock().unwrap().push(m)
+        })
+        .unwrap(),
+    ];
+    Watch {
+        states,
+        status,
+        _subs: subs,
+    }
+}
+
+fn wait_for(lcm: &Lcm, secs: u64, mut done: impl FnMut() -> bool) -> bool {
+    let deadline = Instant::now() + Duration::from_secs(secs);
+    while Instant::now() < deadline {
+        if done() {
+            return true;
+        }
+        lcm.handle_timeout(Duration::from_millis(20)).unwrap();
+    }
+    done()
+}
+
+fn start_bridge(url: &str) -> Proc {
+    let mut c = Command::new(bin("stride-elmo-bridge"));
+    c.args(["--lcm-url", url, "--log-level", "warn", "--config"])
+        .arg(config());
+    Proc::spawn(c)
+}
+
+#[test]
+fn a_trajectory_reaches_the_drives_and_states_come_back() {
+    if !in_sandbox() {
+        return;
+    }
+    let url = udpm_url(7751);
+    let lcm = Lcm::new(&url).unwrap();
+    let w = watch(&lcm);
+    let bridge = start_bridge(&url);
+    assert!(
+        wait_for(&lcm, 10, || w
+            .status
+            .lock()
+            .unwrap()
+            .iter()
+            .any(|s| s.state == NodeStatusT::STATE_RUNNING)),
+        "the bridge never reported running"
+    );
+    // Within limits, shorter than the stream timeout: it plays to the end.
+    let t = trajectory(0.4, 0.5);
+    lcm.publish("JOINT_TRAJECTORY_LEFT_LEG", &t).unwrap();
+    let last = t.positions.last().unwrap().clone();
+    let reached = wait_for(&lcm, 10, || {
+        w.states.lock().unwrap().last().is_some_and(|s| {
+            s.names == JOINTS
+                && s.positions
+                    .iter()
+                    .zip(&last)
+                    .all(|(p, q)| (p - q).abs() < 2e-3)
+        })
+    });
+    assert!(
+        reached,
+        "joints did not reach {last:?}: {:?}",
+        w.states.lock().unwrap().last()
+    );
+
+    // Past the knee's limit: refused whole, reported, nothing moves (the refused trajectory
+    // starts at zero, so playing any of it would show).
+    let mut bad = trajectory(0.4, 0.5);
+    bad.positions[20][3] = 3.0;
+    lcm.publish("JOINT_TRAJECTORY_LEFT_LEG", &bad).unwrap();
+    assert!(wait_for(&lcm, 5, || w.status.lock().unwrap().iter().any(
+        |s| s.state == NodeStatusT::STATE_DEGRADED && s.detail.contains("trajectory rejected")
+    )));
+    wait_for(&lcm, 1, || false);
+    let after = w.states.lock().unwrap().last().unwrap().positions.clone();
+    assert!(
+        last.iter().zip(&after).all(|(a, b)| (a - b).abs() < 2e-3),
+        "moved: {after:?} vs {last:?}"
+    );
+
+    let (st, out) = bridge.interrupt();
+    assert!(st.success(), "{out}");
+    assert!(wait_for(&lcm, 5, || w
+        .status
+        .lock()
+        .unwrap()
+        .iter()
+        .any(|s| s.state == NodeStatusT::STATE_STOPPING)));
+}
+
+#[test]
+fn a_stream_that_stops_mid_motion_quick_stops_the_axes() {
+    if !in_sandbox() {
+        return;
+    }
+    let url = udpm_url(7752);
+    let lcm = Lcm::new(&url).unwrap();
+    let w = watch(&lcm);
+    let bridge = start_bridge(&url);
+    assert!(wait_for(&lcm, 10, || w
+        .status
+        .lock()
+        .unwrap()
+        .iter()
+        .any(|s| s.state == NodeStatusT::STATE_RUNNING)));
+    // 2 s of motion in one message, then silence: after 0.5 s the axes quick-stop.
+    let t = trajectory(2.0, 0.5);
+    lcm.publish("JOINT_TRAJECTORY_LEFT_LEG", &t).unwrap();
+    assert!(wait_for(&lcm, 5, || w
+        .status
+        .lock()
+        .unwrap()
+        .iter()
+        .any(|s| s.detail.contains("quick stop"))));
+    std::thread::sleep(Duration::from_millis(300));
+    wait_for(&lcm, 1, || false);
+    let knee = w.states.lock().unwrap().last().unwrap().positions[3];
+    let end = t.positions.last().unwrap()[3];
+    assert!(
+        knee < end - 0.05,
+        "the knee should have stopped short of {end}: {knee}"
+    );
+    let (st, out) = bridge.interrupt();
+    assert!(st.success(), "{out}");
+}
