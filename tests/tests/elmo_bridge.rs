@@ -85,9 +85,13 @@ fn wait_for(lcm: &Lcm, secs: u64, mut done: impl FnMut() -> bool) -> bool {
 }
 
 fn start_bridge(url: &str) -> Proc {
+    start_bridge_with(url, &config())
+}
+
+fn start_bridge_with(url: &str, config: &std::path::Path) -> Proc {
     let mut c = Command::new(bin("stride-elmo-bridge"));
     c.args(["--lcm-url", url, "--log-level", "warn", "--config"])
-        .arg(config());
+        .arg(config);
     Proc::spawn(c)
 }
 
@@ -187,4 +191,87 @@ fn a_stream_that_stops_mid_motion_quick_stops_the_axes() {
     );
     let (st, out) = bridge.interrupt();
     assert!(st.success(), "{out}");
+}
+
+#[test]
+fn the_whole_chain_bridge_lcm_gateway_pty_dongle_drives() {
+    if !in_sandbox() {
+        return;
+    }
+    let url = udpm_url(7753);
+    let dir = tempfile::tempdir().unwrap();
+    // Fake dongle + six fake drives, on a pseudo-terminal.
+    let pty_file = dir.path().join("pty");
+    let rig = {
+        let mut c = Command::new(bin("fake-can-rig"));
+        c.arg("--pty-file").arg(&pty_file);
+        Proc::spawn(c)
+    };
+    let t0 = Instant::now();
+    while !pty_file.exists() && t0.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let pty = std::fs::read_to_string(&pty_file).unwrap();
+    // The gateway puts the dongle's bus on LCM.
+    let dump = dir.path().join("candump.log");
+    let gateway = {
+        let mut c = Command::new(bin("stride-usb2can"));
+        c.args([
+            "--lcm-url",
+            &url,
+            "--log-level",
+            "warn",
+            "--bus-name",
+            "left_leg",
+        ])
+        .arg("--device")
+        .arg(format!("slcan:{pty}"))
+        .arg("--candump")
+        .arg(&dump);
+        Proc::spawn(c)
+    };
+    // The bridge reaches the drives through LCM.
+    // Every frame crosses LCM, the gateway and the serial line: allow the stream more time.
+    let text = std::fs::read_to_string(config())
+        .unwrap()
+        .replace("bus = \"sim\"", "bus = \"lcm:left_leg\"")
+        .replace("stream_timeout_ms = 500", "stream_timeout_ms = 5000");
+    let cfg = dir.path().join("leg.toml");
+    std::fs::write(&cfg, text).unwrap();
+    let lcm = Lcm::new(&url).unwrap();
+    let w = watch(&lcm);
+    std::thread::sleep(Duration::from_millis(500));
+    let bridge = start_bridge_with(&url, &cfg);
+    assert!(
+        wait_for(&lcm, 20, || w.status.lock().unwrap().iter().any(|s| s.node
+            == "stride-elmo-bridge"
+            && s.state == NodeStatusT::STATE_RUNNING)),
+        "the bridge never came up through the chain"
+    );
+    let t = trajectory(0.4, 0.5);
+    lcm.publish("JOINT_TRAJECTORY_LEFT_LEG", &t).unwrap();
+    let last = t.positions.last().unwrap().clone();
+    assert!(
+        wait_for(&lcm, 15, || w.states.lock().unwrap().last().is_some_and(
+            |s| s
+                .positions
+                .iter()
+                .zip(&last)
+                .all(|(p, q)| (p - q).abs() < 2e-3)
+        )),
+        "joints did not reach the end through the chain: {:?}",
+        w.states.lock().unwrap().last()
+    );
+    let (st, out) = bridge.interrupt();
+    assert!(st.success(), "{out}");
+    let (st, out) = gateway.interrupt();
+    assert!(st.success(), "{out}");
+    assert!(out.contains("frames from the wire"), "{out}");
+    drop(rig);
+    let dump = std::fs::read_to_string(&dump).unwrap();
+    assert!(
+        dump.lines().any(|l| l.contains(" left_leg 601#40")),
+        "no SDO read to node 1 in the candump log"
+    );
+    assert!(dump.lines().count() > 100);
 }

@@ -10,7 +10,8 @@ use stride_lcmtypes::stride::{HeaderT, JointStateT, JointTrajectoryT};
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BridgeConfig {
-    /// `sim` (fake drives in this process) or `slcan:PATH` (a USB2CAN dongle).
+    /// `sim` (fake drives in this process), `slcan:PATH` (a USB2CAN dongle) or `lcm:NAME`
+    /// (a CAN bus behind a stride-usb2can gateway).
     pub bus: String,
     /// CAN bit rate.
     pub bitrate: u32,

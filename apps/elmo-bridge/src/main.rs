@@ -22,7 +22,8 @@ use stride_node::{load_config, Node, NodeArgs, Stamper};
 /// a limit is rejected whole and reported, never clipped) and streamed as PVT rows. Joint
 /// states are published at the configured rate. When motion is under way and the trajectory
 /// stream stops for longer than stream_timeout_ms, every axis quick-stops. On shutdown the
-/// drives are disabled. With bus = "sim" six fake drives run in this process.
+/// drives are disabled. With bus = "sim" fake drives run in this process; with bus =
+/// "lcm:NAME" the CAN bus is reached through a stride-usb2can gateway on the LCM network.
 #[derive(Parser, Debug)]
 #[command(version, about, long_about)]
 struct Cli {
@@ -32,7 +33,15 @@ struct Cli {
 
 type Sim = (Arc<AtomicBool>, Vec<JoinHandle<FakeElmo>>);
 
-fn open_bus(cfg: &BridgeConfig) -> anyhow::Result<(Box<dyn CanBus + Send>, Option<Sim>)> {
+fn open_bus(
+    cfg: &BridgeConfig,
+    lcm_url: &str,
+) -> anyhow::Result<(Box<dyn CanBus + Send>, Option<Sim>)> {
+    if let Some(name) = cfg.bus.strip_prefix("lcm:") {
+        let bus = stride_canbus::lcm::LcmBus::new(lcm_url, name)
+            .with_context(|| format!("joining CAN bus {name} over LCM"))?;
+        return Ok((Box::new(bus), None));
+    }
     if cfg.bus == "sim" {
         let bus = MemBus::new(cfg.bitrate);
         let stop = Arc::new(AtomicBool::new(false));
@@ -47,13 +56,7 @@ fn open_bus(cfg: &BridgeConfig) -> anyhow::Result<(Box<dyn CanBus + Send>, Optio
         return Ok((Box::new(bus.node()), Some((stop, drives))));
     }
     if let Some(path) = cfg.bus.strip_prefix("slcan:") {
-        let port = serialport::new(path, 115_200)
-            .timeout(Duration::from_millis(10))
-            .open_native()
-            .with_context(|| format!("opening {path}"))?;
-        let rate = stride_slcan::BitRate::from_bits_per_second(cfg.bitrate)
-            .with_context(|| format!("{} bit/s is not an SLCAN rate", cfg.bitrate))?;
-        let bus = stride_canbus::slcan::SlcanBus::open(port, rate, Duration::from_secs(1))
+        let bus = stride_canbus::slcan::open_path(path, cfg.bitrate)
             .with_context(|| format!("opening the SLCAN dongle on {path}"))?;
         return Ok((Box::new(bus), None));
     }
@@ -69,7 +72,7 @@ fn main() -> anyhow::Result<()> {
     cfg.check().map_err(anyhow::Error::msg)?;
     let node = Node::start("stride-elmo-bridge", &cli.node)?;
     node.set_health(NodeStatusT::STATE_STARTING, "bringing up the drives");
-    let (bus, sim) = open_bus(&cfg)?;
+    let (bus, sim) = open_bus(&cfg, node.lcm().url())?;
     let mut master = Master::new(bus, cfg.joint.clone(), MasterConfig::default())?;
     if let Err(e) = master.bring_up() {
         node.set_health(NodeStatusT::STATE_FAULT, format!("bring-up failed: {e}"));

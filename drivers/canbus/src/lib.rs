@@ -1,8 +1,11 @@
 //! One CAN bus abstraction, [`CanBus`], with deadlines on every call, and its backends:
 //! [`MemBus`], an in-memory bus with any number of nodes where each frame takes its real time
 //! on the wire at the chosen bit rate (so timing-sensitive code meets realistic delays and bus
-//! load is measured), and [`slcan::SlcanBus`], a USB2CAN dongle speaking SLCAN on a serial port.
+//! load is measured), [`slcan::SlcanBus`], a USB2CAN dongle speaking SLCAN on a serial port,
+//! and [`lcm::LcmBus`], a bus on another machine reached through LCM (a `stride-usb2can`
+//! gateway puts it on the wire).
 
+pub mod lcm;
 pub mod slcan;
 
 use std::collections::VecDeque;

@@ -20,6 +20,21 @@ pub struct SlcanStats {
     pub refused: u64,
 }
 
+/// Opens the dongle on the serial device `path` (e.g. `/dev/ttyACM0`) at `bits_per_second`.
+pub fn open_path(
+    path: &str,
+    bits_per_second: u32,
+) -> Result<SlcanBus<serialport::TTYPort>, BusError> {
+    let rate = BitRate::from_bits_per_second(bits_per_second)
+        .ok_or_else(|| BusError::Device(format!("{bits_per_second} bit/s is not an SLCAN rate")))?;
+    // USB dongles ignore the serial speed; real UARTs want the fastest they can do.
+    let port = serialport::new(path, 115_200)
+        .timeout(Duration::from_millis(10))
+        .open_native()
+        .map_err(|e| BusError::Device(format!("opening {path}: {e}")))?;
+    SlcanBus::open(port, rate, Duration::from_secs(1))
+}
+
 /// A dongle on a serial port, opened at a bit rate.
 pub struct SlcanBus<P: serialport::SerialPort> {
     port: P,
@@ -105,7 +120,15 @@ impl<P: serialport::SerialPort> SlcanBus<P> {
         let mut buf = [0u8; 256];
         let n = match self.port.read(&mut buf) {
             Ok(n) => n,
-            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => 0,
+            // A timeout, or a signal (the caller checks its shutdown flag): nothing read.
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::Interrupted
+                ) =>
+            {
+                0
+            }
             Err(e) => return Err(io(e)),
         };
         for line in self.split.push(&buf[..n]) {

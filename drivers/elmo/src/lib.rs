@@ -219,7 +219,8 @@ fn pvt_rpdo() -> PdoConfig {
     }
 }
 
-/// The state TPDO: TPDO1 with statusword and actual position, on every SYNC.
+/// The state TPDO: TPDO1 with statusword, actual position and the PVT table's read pointer
+/// (0x2F12, readable only through a PDO), on every SYNC.
 fn state_tpdo() -> PdoConfig {
     PdoConfig {
         direction: Direction::Transmit,
@@ -235,6 +236,11 @@ fn state_tpdo() -> PdoConfig {
                 index: ds402::POSITION_ACTUAL,
                 sub: 0,
                 bits: 32,
+            },
+            MapEntry {
+                index: 0x2f12,
+                sub: 0,
+                bits: 16,
             },
         ],
     }
@@ -563,11 +569,15 @@ impl<B: CanBus> Master<B> {
     /// Sends queued rows while the drives have room, starts motion once rows are loaded,
     /// sends a SYNC, and processes what arrived. Call it every cycle.
     pub fn pump(&mut self, now: Instant) -> Result<(), MasterError> {
-        for a in 0..self.axes.len() {
-            let node = self.axes[a].node;
-            let cob = pvt_rpdo().cob_id(node);
-            let mut bus_full = false;
-            while !self.axes[a].rows_pending.is_empty() && self.axes[a].queue.room() > 0 {
+        // Rows go out round-robin, one per axis per pass, so that no axis starves while the
+        // controller's queue is the bottleneck.
+        'fill: loop {
+            let mut sent_any = false;
+            for a in 0..self.axes.len() {
+                if self.axes[a].rows_pending.is_empty() || self.axes[a].queue.room() == 0 {
+                    continue;
+                }
+                let cob = pvt_rpdo().cob_id(self.axes[a].node);
                 let row = self.axes[a].rows_pending[0];
                 let f = CanFrame::standard(cob, &row.bytes().expect("validated row"))
                     .expect("valid frame");
@@ -575,24 +585,36 @@ impl<B: CanBus> Master<B> {
                     Ok(()) => {
                         self.axes[a].rows_pending.remove(0);
                         self.axes[a].queue.push();
+                        sent_any = true;
                     }
                     // The controller's queue is full: the rest waits for the next cycle.
-                    Err(BusError::TxQueueFull) => {
-                        bus_full = true;
-                        break;
-                    }
+                    Err(BusError::TxQueueFull) => break 'fill,
                     Err(e) => return Err(e.into()),
                 }
             }
-            let loaded = self.axes[a].queue.pending() >= 2
-                && (self.axes[a].rows_pending.is_empty() || self.axes[a].queue.room() == 0);
-            if !self.axes[a].started && loaded && !bus_full {
+            if !sent_any {
+                break;
+            }
+        }
+        // Every axis starts together, once all have their rows loaded (or their tables full);
+        // an axis that joins a motion under way starts as soon as it is loaded.
+        let moving = self.axes.iter().any(|a| a.started);
+        let loaded =
+            |a: &Axis| a.queue.pending() >= 2 && (a.rows_pending.is_empty() || a.queue.room() == 0);
+        let waiting: Vec<usize> = (0..self.axes.len())
+            .filter(|&a| !self.axes[a].started && self.axes[a].queue.pending() > 0)
+            .collect();
+        if !waiting.is_empty() && (moving || waiting.iter().all(|&a| loaded(&self.axes[a]))) {
+            for a in waiting {
+                if !loaded(&self.axes[a]) {
+                    continue;
+                }
                 let bg = Interp::set(b"BG", 0, Value::Int(0))
-                    .encode(node)
+                    .encode(self.axes[a].node)
                     .expect("valid command");
                 match self.bus.send(&bg, now + self.cfg.sdo_timeout) {
                     Ok(()) => self.axes[a].started = true,
-                    Err(BusError::TxQueueFull) => {}
+                    Err(BusError::TxQueueFull) => break,
                     Err(e) => return Err(e.into()),
                 }
             }
@@ -643,6 +665,9 @@ impl<B: CanBus> Master<B> {
                     ax.state.statusword = v[0] as u16;
                     ax.state.position = v[1] as u32 as i32 as f64 / ax.cfg.counts_per_rad();
                     ax.state.updated = Some(now);
+                    if ax.started {
+                        ax.queue.on_read_pointer(v[2] as u16);
+                    }
                 }
             }
             Function::Heartbeat => {
