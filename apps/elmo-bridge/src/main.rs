@@ -118,7 +118,13 @@ fn main() -> anyhow::Result<()> {
                 }
             }
         }
-        master.pump(now)?;
+        if let Err(e) = master.pump(now) {
+            // Bus-off or a dead interface: report it and keep trying; the drives stop on
+            // their own when their tables run dry.
+            tracing::error!(error = %e, "CAN cycle failed");
+            node.set_health(NodeStatusT::STATE_FAULT, format!("CAN: {e}"));
+            continue;
+        }
         for e in master.take_events() {
             match &e {
                 Event::Emergency { joint, text, .. } => {

@@ -871,4 +871,65 @@ mod tests {
         assert!(matches!(e, MasterError::NoAnswer { node: 9, .. }), "{e}");
         assert!(e.to_string().contains("j9 (node 9)"));
     }
+
+    #[test]
+    fn faults_become_events_and_errors() {
+        let bus = MemBus::new(1_000_000);
+        let stop = Arc::new(AtomicBool::new(false));
+        let levers: Vec<Levers> = (0..2).map(|_| Levers::default()).collect();
+        let drives: Vec<_> = (1..=2)
+            .map(|i| {
+                FakeElmo::new(ElmoConfig::new(i), levers[i as usize - 1].clone())
+                    .spawn(bus.node(), stop.clone())
+            })
+            .collect();
+        let mut m = Master::new(
+            bus.node(),
+            (1..=2).map(joint).collect(),
+            MasterConfig::default(),
+        )
+        .unwrap();
+        m.bring_up().unwrap();
+        let run = |m: &mut Master<stride_canbus::MemNode>, ms: u64| {
+            let end = Instant::now() + Duration::from_millis(ms);
+            while Instant::now() < end {
+                m.pump(Instant::now()).unwrap();
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        };
+        run(&mut m, 300);
+        assert!(m.take_events().is_empty());
+        // A drive in fault: its emergency is reported, its statusword shows it.
+        levers[0].fault.store(true, Ordering::Relaxed);
+        run(&mut m, 100);
+        let ev = m.take_events();
+        assert!(
+            ev.iter().any(|e| matches!(e, Event::Emergency { joint, text, .. } if joint == "j1" && text == "current")),
+            "{ev:?}"
+        );
+        let s = m.states()[0].1;
+        assert_eq!(DriveState::from_statusword(s.statusword), DriveState::Fault);
+        // A drive that stops answering: its heartbeat is declared lost.
+        levers[1].silent.store(true, Ordering::Relaxed);
+        run(&mut m, 500);
+        let ev = m.take_events();
+        assert!(
+            ev.iter()
+                .any(|e| matches!(e, Event::HeartbeatLost { joint } if joint == "j2")),
+            "{ev:?}"
+        );
+        // An SDO to it times out with a clear error.
+        let e = m.read(1, 0x1000, 0).unwrap_err();
+        assert!(matches!(e, MasterError::NoAnswer { node: 2, .. }), "{e}");
+        // Bus-off: every call fails with it, nothing panics.
+        bus.set_bus_off(true);
+        assert_eq!(
+            m.pump(Instant::now()),
+            Err(MasterError::Bus(BusError::BusOff))
+        );
+        stop.store(true, Ordering::Relaxed);
+        for d in drives {
+            d.join().unwrap();
+        }
+    }
 }
