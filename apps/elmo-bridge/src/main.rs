@@ -55,6 +55,11 @@ fn open_bus(
             .collect();
         return Ok((Box::new(bus.node()), Some((stop, drives))));
     }
+    #[cfg(feature = "socketcan")]
+    if let Some(iface) = cfg.bus.strip_prefix("socketcan:") {
+        let bus = stride_canbus::socketcan::SocketCanBus::open(iface)?;
+        return Ok((Box::new(bus), None));
+    }
     if let Some(path) = cfg.bus.strip_prefix("slcan:") {
         let bus = stride_canbus::slcan::open_path(path, cfg.bitrate)
             .with_context(|| format!("opening the SLCAN dongle on {path}"))?;

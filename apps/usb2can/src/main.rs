@@ -23,7 +23,8 @@ use stride_usb2can::{candump_line, GatewayStats};
 struct Cli {
     #[command(flatten)]
     node: NodeArgs,
-    /// The interface: slcan:/dev/ttyACM0 (a USB2CAN dongle speaking SLCAN).
+    /// The interface: slcan:/dev/ttyACM0 (a USB2CAN dongle speaking SLCAN), or socketcan:can0
+    /// (a kernel interface; needs the build feature `socketcan`).
     #[arg(long)]
     device: String,
     /// Bus name in the LCM channels (CAN_<NAME>_RX / _TX).
@@ -41,6 +42,12 @@ struct Cli {
 }
 
 fn open(device: &str, bitrate: u32) -> anyhow::Result<Box<dyn CanBus + Send>> {
+    #[cfg(feature = "socketcan")]
+    if let Some(iface) = device.strip_prefix("socketcan:") {
+        return Ok(Box::new(stride_canbus::socketcan::SocketCanBus::open(
+            iface,
+        )?));
+    }
     if let Some(path) = device.strip_prefix("slcan:") {
         let bus = stride_canbus::slcan::open_path(path, bitrate)
             .with_context(|| format!("opening the SLCAN dongle on {path}"))?;

@@ -7,6 +7,8 @@
 
 pub mod lcm;
 pub mod slcan;
+#[cfg(feature = "socketcan")]
+pub mod socketcan;
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
