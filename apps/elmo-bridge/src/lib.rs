@@ -23,6 +23,11 @@ pub struct BridgeConfig {
     pub state_rate_hz: f64,
     /// Quick stop when motion is under way and no trajectory came for this long (0: never).
     pub stream_timeout_ms: u64,
+    /// `pvt` (Elmo PVT tables, cubic) or `ip` (CiA 402 interpolated position, linear, fixed
+    /// period `ip_period_ms`).
+    pub motion: String,
+    /// The fixed set-point period in `ip` mode, ms.
+    pub ip_period_ms: u8,
     /// The joints.
     pub joint: Vec<JointConfig>,
 }
@@ -36,6 +41,8 @@ impl Default for BridgeConfig {
             state_channel: "JOINT_STATE".into(),
             state_rate_hz: 100.0,
             stream_timeout_ms: 500,
+            motion: "pvt".into(),
+            ip_period_ms: 10,
             joint: Vec::new(),
         }
     }
@@ -47,6 +54,7 @@ impl BridgeConfig {
         if self.joint.is_empty() {
             return Err("the configuration lists no [[joint]]".into());
         }
+        self.motion()?;
         if !(1.0..=1000.0).contains(&self.state_rate_hz) {
             return Err(format!(
                 "state_rate_hz {} outside 1..=1000",
@@ -71,6 +79,21 @@ impl BridgeConfig {
             }
         }
         Ok(())
+    }
+}
+
+impl BridgeConfig {
+    /// The motion mode the configuration asks for.
+    pub fn motion(&self) -> Result<stride_elmo::Motion, String> {
+        match self.motion.as_str() {
+            "pvt" => Ok(stride_elmo::Motion::Pvt),
+            "ip" if self.ip_period_ms > 0 => Ok(stride_elmo::Motion::InterpolatedPosition {
+                period_ms: self.ip_period_ms,
+            }),
+            other => Err(format!(
+                "motion {other:?}: use \"pvt\" or \"ip\" (with ip_period_ms 1..=255)"
+            )),
+        }
     }
 }
 

@@ -19,7 +19,8 @@ use stride_node::{load_config, Node, NodeArgs, Stamper};
 /// At start it brings every configured drive up (identity, heartbeat, PDO mapping verified,
 /// CiA 402 enable) and refuses to run otherwise. Trajectories (stride.joint_trajectory_t) are
 /// checked against every joint's position, velocity and acceleration limits (a trajectory past
-/// a limit is rejected whole and reported, never clipped) and streamed as PVT rows. Joint
+/// a limit is rejected whole and reported, never clipped) and streamed as Elmo PVT rows, or as
+/// CiA 402 interpolated position set-points (motion = "ip"). Joint
 /// states are published at the configured rate. When motion is under way and the trajectory
 /// stream stops for longer than stream_timeout_ms, every axis quick-stops. On shutdown the
 /// drives are disabled. With bus = "sim" fake drives run in this process; with bus =
@@ -78,7 +79,11 @@ fn main() -> anyhow::Result<()> {
     let node = Node::start("stride-elmo-bridge", &cli.node)?;
     node.set_health(NodeStatusT::STATE_STARTING, "bringing up the drives");
     let (bus, sim) = open_bus(&cfg, node.lcm().url())?;
-    let mut master = Master::new(bus, cfg.joint.clone(), MasterConfig::default())?;
+    let master_cfg = MasterConfig {
+        motion: cfg.motion().map_err(anyhow::Error::msg)?,
+        ..Default::default()
+    };
+    let mut master = Master::new(bus, cfg.joint.clone(), master_cfg)?;
     if let Err(e) = master.bring_up() {
         node.set_health(NodeStatusT::STATE_FAULT, format!("bring-up failed: {e}"));
         tracing::error!(error = %e, "bring-up failed");

@@ -178,6 +178,20 @@ struct Axis {
     started: bool,
 }
 
+/// How trajectories reach the drives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Motion {
+    /// Elmo PVT: rows of position, velocity and time through object 0x2001, cubic
+    /// interpolation, started with the interpreter's `BG`.
+    Pvt,
+    /// CiA 402 interpolated position mode (7), linear, with a fixed period: set-points through
+    /// 0x60C1:1, started with controlword bit 4. Portable to other vendors' drives.
+    InterpolatedPosition {
+        /// The fixed time between set-points, ms (0x60C2).
+        period_ms: u8,
+    },
+}
+
 /// Settings of the master.
 #[derive(Debug, Clone)]
 pub struct MasterConfig {
@@ -185,6 +199,8 @@ pub struct MasterConfig {
     pub sdo_timeout: Duration,
     /// Heartbeat period the drives are told to use; lost after three periods.
     pub heartbeat: Duration,
+    /// PVT or interpolated position.
+    pub motion: Motion,
 }
 
 impl Default for MasterConfig {
@@ -192,6 +208,7 @@ impl Default for MasterConfig {
         MasterConfig {
             sdo_timeout: Duration::from_millis(200),
             heartbeat: Duration::from_millis(100),
+            motion: Motion::Pvt,
         }
     }
 }
@@ -205,17 +222,26 @@ pub struct Master<B: CanBus> {
     events: Vec<Event>,
 }
 
-/// The PVT RPDO: RPDO3 carrying object 0x2001 (one row per frame).
-fn pvt_rpdo() -> PdoConfig {
+/// The set-point RPDO: RPDO3 carrying object 0x2001 (a PVT row per frame), or 0x60C1:1 (an
+/// interpolated position set-point per frame).
+fn setpoint_rpdo(motion: Motion) -> PdoConfig {
+    let entry = match motion {
+        Motion::Pvt => MapEntry {
+            index: stride_canopen::elmo::PVT_OBJECT,
+            sub: 0,
+            bits: 64,
+        },
+        Motion::InterpolatedPosition { .. } => MapEntry {
+            index: ds402::IP_DATA,
+            sub: 1,
+            bits: 32,
+        },
+    };
     PdoConfig {
         direction: Direction::Receive,
         number: 3,
         transmission: 255,
-        entries: vec![MapEntry {
-            index: stride_canopen::elmo::PVT_OBJECT,
-            sub: 0,
-            bits: 64,
-        }],
+        entries: vec![entry],
     }
 }
 
@@ -402,7 +428,18 @@ impl<B: CanBus> Master<B> {
             }
             let hb = self.cfg.heartbeat.as_millis() as u16;
             self.write(a, 0x1017, 0, hb.to_le_bytes().to_vec())?;
-            for pdo in [pvt_rpdo(), state_tpdo()] {
+            if let Motion::InterpolatedPosition { period_ms } = self.cfg.motion {
+                self.write(
+                    a,
+                    ds402::MODES_OF_OPERATION,
+                    0,
+                    vec![ds402::Mode::InterpolatedPosition.code() as u8],
+                )?;
+                self.write(a, ds402::IP_SUBMODE, 0, 0i16.to_le_bytes().to_vec())?;
+                self.write(a, ds402::IP_PERIOD, 1, vec![period_ms])?;
+                self.write(a, ds402::IP_PERIOD, 2, vec![(-3i8) as u8])?;
+            }
+            for pdo in [setpoint_rpdo(self.cfg.motion), state_tpdo()] {
                 for (i, s, v) in pdo.sdo_writes(node) {
                     self.write(a, i, s, v)?;
                 }
@@ -487,6 +524,14 @@ impl<B: CanBus> Master<B> {
                     return Err(MasterError::BadTrajectory(format!(
                         "row {r}: {dt} s between rows; PVT rows are 1 to 255 ms apart"
                     )));
+                }
+                if let Motion::InterpolatedPosition { period_ms } = self.cfg.motion {
+                    if (dt * 1000.0 - period_ms as f64).abs() > 0.5 {
+                        return Err(MasterError::BadTrajectory(format!(
+                            "row {r}: {:.1} ms between rows; interpolated position mode runs at a fixed {period_ms} ms",
+                            dt * 1000.0
+                        )));
+                    }
                 }
             }
             for (c, &a) in cols.iter().enumerate() {
@@ -577,10 +622,15 @@ impl<B: CanBus> Master<B> {
                 if self.axes[a].rows_pending.is_empty() || self.axes[a].queue.room() == 0 {
                     continue;
                 }
-                let cob = pvt_rpdo().cob_id(self.axes[a].node);
+                let cob = setpoint_rpdo(self.cfg.motion).cob_id(self.axes[a].node);
                 let row = self.axes[a].rows_pending[0];
-                let f = CanFrame::standard(cob, &row.bytes().expect("validated row"))
-                    .expect("valid frame");
+                let f = match self.cfg.motion {
+                    Motion::Pvt => CanFrame::standard(cob, &row.bytes().expect("validated row")),
+                    Motion::InterpolatedPosition { .. } => {
+                        CanFrame::standard(cob, &row.position.to_le_bytes())
+                    }
+                }
+                .expect("valid frame");
                 match self.bus.send(&f, now + self.cfg.sdo_timeout) {
                     Ok(()) => {
                         self.axes[a].rows_pending.remove(0);
@@ -609,10 +659,18 @@ impl<B: CanBus> Master<B> {
                 if !loaded(&self.axes[a]) {
                     continue;
                 }
-                let bg = Interp::set(b"BG", 0, Value::Int(0))
-                    .encode(self.axes[a].node)
-                    .expect("valid command");
-                match self.bus.send(&bg, now + self.cfg.sdo_timeout) {
+                let start = match self.cfg.motion {
+                    Motion::Pvt => Interp::set(b"BG", 0, Value::Int(0))
+                        .encode(self.axes[a].node)
+                        .expect("valid command"),
+                    // RPDO1 carries the controlword: enable operation + enable interpolation.
+                    Motion::InterpolatedPosition { .. } => CanFrame::standard(
+                        CobId::of(Function::Rpdo(1), self.axes[a].node).raw(),
+                        &0x001fu16.to_le_bytes(),
+                    )
+                    .expect("valid frame"),
+                };
+                match self.bus.send(&start, now + self.cfg.sdo_timeout) {
                     Ok(()) => self.axes[a].started = true,
                     Err(BusError::TxQueueFull) => break,
                     Err(e) => return Err(e.into()),
@@ -695,6 +753,15 @@ impl<B: CanBus> Master<B> {
                             }
                         }
                         ax.started = false;
+                        if let Motion::InterpolatedPosition { .. } = self.cfg.motion {
+                            // Bit 4 must fall before the next start (a rising edge starts).
+                            let cw = CanFrame::standard(
+                                CobId::of(Function::Rpdo(1), ax.node).raw(),
+                                &0x000fu16.to_le_bytes(),
+                            )
+                            .expect("valid frame");
+                            let _ = self.bus.send(&cw, now + self.cfg.sdo_timeout);
+                        }
                     }
                     self.events.push(Event::Emergency {
                         joint: self.axes[a].cfg.name.clone(),
@@ -927,6 +994,52 @@ mod tests {
             m.pump(Instant::now()),
             Err(MasterError::Bus(BusError::BusOff))
         );
+        stop.store(true, Ordering::Relaxed);
+        for d in drives {
+            d.join().unwrap();
+        }
+    }
+
+    #[test]
+    fn interpolated_position_mode_walks_the_same_trajectory() {
+        let bus = MemBus::new(1_000_000);
+        let stop = Arc::new(AtomicBool::new(false));
+        let drives: Vec<_> = (1..=3)
+            .map(|i| {
+                FakeElmo::new(ElmoConfig::new(i), Levers::default()).spawn(bus.node(), stop.clone())
+            })
+            .collect();
+        let cfg = MasterConfig {
+            motion: Motion::InterpolatedPosition { period_ms: 10 },
+            ..Default::default()
+        };
+        let mut m = Master::new(bus.node(), (1..=3).map(joint).collect(), cfg).unwrap();
+        m.bring_up().unwrap();
+        let t = sine(3, 150);
+        m.load(&t).unwrap();
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !m.idle() && Instant::now() < deadline {
+            m.pump(Instant::now()).unwrap();
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!(m.idle(), "trajectory not finished");
+        std::thread::sleep(Duration::from_millis(60));
+        m.pump(Instant::now()).unwrap();
+        for (i, (_, s)) in m.states().into_iter().enumerate() {
+            let want = t.positions.last().unwrap()[i];
+            assert!(
+                (s.position - want).abs() < 1e-3,
+                "joint {i}: {} vs {want}",
+                s.position
+            );
+        }
+        // A trajectory whose rows are not the fixed period apart is refused.
+        let mut uneven = sine(3, 150);
+        uneven.times[10] += 0.004;
+        assert!(matches!(
+            m.validate(&uneven),
+            Err(MasterError::BadTrajectory(_))
+        ));
         stop.store(true, Ordering::Relaxed);
         for d in drives {
             d.join().unwrap();

@@ -104,6 +104,7 @@ pub struct FakeElmo {
     last_heartbeat: Option<Instant>,
     sync_count: u32,
     booted: bool,
+    ip_bit: bool,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -111,6 +112,8 @@ struct Segment {
     from: PvtRow,
     to: PvtRow,
     elapsed: f64,
+    /// DS402 linear interpolation (mode 7, sub-mode 0) instead of PVT's cubic.
+    linear: bool,
 }
 
 fn le(v: i64, bytes: usize) -> Vec<u8> {
@@ -148,6 +151,7 @@ impl FakeElmo {
             last_heartbeat: None,
             sync_count: 0,
             booted: false,
+            ip_bit: false,
             cfg,
         };
         d.reset_od();
@@ -210,6 +214,7 @@ impl FakeElmo {
         put(ds402::IP_SUBMODE, 0, Rw, le(0, 2));
         put(ds402::IP_PERIOD, 1, Rw, vec![10]);
         put(ds402::IP_PERIOD, 2, Rw, vec![(-3i8) as u8]);
+        put(ds402::IP_DATA, 1, Rw, le(0, 4));
         put(stride_canopen::elmo::PVT_OBJECT, 0, Wo, le(0, 8));
         put(0x2f11, 0, Ro, le(1, 2));
         put(0x2f12, 0, Ro, le(1, 2));
@@ -485,6 +490,12 @@ impl FakeElmo {
                 if !self.motor_on {
                     self.motion = None;
                 }
+                // Interpolated position mode: bit 4 ("enable interpolation") starts the buffer.
+                let ip_mode = self.get_u(ds402::MODES_OF_OPERATION, 0) as i8 == 7;
+                if ip_mode && self.motor_on && cw & 0x10 != 0 && self.prev_ip_bit_clear() {
+                    self.begin_motion(Instant::now());
+                }
+                self.ip_bit = cw & 0x10 != 0;
             }
             (ds402::MODES_OF_OPERATION, 0) => {
                 self.set_raw(ds402::MODES_DISPLAY, 0, data[0] as i8 as i64)
@@ -493,6 +504,19 @@ impl FakeElmo {
                 let mut b = [0u8; 8];
                 b.copy_from_slice(data);
                 self.push_row(PvtRow::from_bytes(&b), bus);
+            }
+            (ds402::IP_DATA, 1) => {
+                // A linear interpolation set-point: one row of the fixed period (0x60C2, ms).
+                let position = i32::from_le_bytes([data[0], data[1], data[2], data[3]]);
+                let period = self.get_u(ds402::IP_PERIOD, 1).clamp(1, 255) as u8;
+                self.push_row(
+                    PvtRow {
+                        position,
+                        velocity: 0,
+                        time_ms: period,
+                    },
+                    bus,
+                );
             }
             _ => {}
         }
@@ -699,6 +723,10 @@ impl FakeElmo {
         }
     }
 
+    fn prev_ip_bit_clear(&self) -> bool {
+        !self.ip_bit
+    }
+
     fn begin_motion(&mut self, now: Instant) {
         let rows = self.cfg.pvt_rows as u64;
         if self.written - self.executed < 2 {
@@ -707,10 +735,13 @@ impl FakeElmo {
         let from = self.table[(self.executed % rows) as usize];
         let to = self.table[((self.executed + 1) % rows) as usize];
         self.commanded = from.position as f64;
+        let linear = self.get_u(ds402::MODES_OF_OPERATION, 0) as i8 == 7
+            && self.get_u(ds402::IP_SUBMODE, 0) as i16 == 0;
         self.motion = Some(Segment {
             from,
             to,
             elapsed: 0.0,
+            linear,
         });
         self.last_step = Some(now);
     }
@@ -795,11 +826,15 @@ impl FakeElmo {
     }
 }
 
-/// Cubic Hermite interpolation between two PVT rows (velocities in counts/s).
+/// Cubic Hermite interpolation between two PVT rows (velocities in counts/s), or linear
+/// interpolation in DS402 interpolated position mode.
 fn hermite(seg: &Segment) -> f64 {
     let t_total = seg.from.time_ms as f64 / 1000.0;
     let s = (seg.elapsed / t_total).clamp(0.0, 1.0);
     let (p0, p1) = (seg.from.position as f64, seg.to.position as f64);
+    if seg.linear {
+        return p0 + (p1 - p0) * s;
+    }
     let (m0, m1) = (
         seg.from.velocity as f64 * t_total,
         seg.to.velocity as f64 * t_total,
