@@ -137,8 +137,23 @@ fn main() -> anyhow::Result<()> {
         }
         for e in master.take_events() {
             match &e {
-                Event::Emergency { joint, text, .. } => {
-                    tracing::warn!(joint = joint.as_str(), "emergency: {text}")
+                Event::Emergency { joint, text, emcy } => {
+                    tracing::warn!(joint = joint.as_str(), "emergency: {text}");
+                    // Queue-low is routine (a refill request); anything else is published.
+                    let routine = matches!(
+                        stride_canopen::emcy::ElmoEmcy::from_emcy(emcy),
+                        Some(stride_canopen::emcy::ElmoEmcy::QueueLow { .. })
+                            | Some(stride_canopen::emcy::ElmoEmcy::MotionTerminated {
+                                reason: 1 | 3,
+                                ..
+                            })
+                    );
+                    if !routine {
+                        node.set_health(
+                            NodeStatusT::STATE_DEGRADED,
+                            format!("{joint}: emergency {:#06x}: {text}", emcy.code),
+                        );
+                    }
                 }
                 Event::HeartbeatLost { joint } => {
                     tracing::error!(joint = joint.as_str(), "heartbeat lost");
