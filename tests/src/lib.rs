@@ -94,6 +94,14 @@ impl Proc {
         }
     }
 
+    /// Sends a signal (e.g. `libc::SIGUSR1`) to the process.
+    pub fn signal(&self, sig: i32) {
+        if let Some(child) = &self.child {
+            // SAFETY: plain kill(2) on our own child.
+            unsafe { libc::kill(child.id() as i32, sig) };
+        }
+    }
+
     /// Sends SIGINT and waits (up to 10 s) for the exit; returns the status and stdout.
     pub fn interrupt(self) -> (std::process::ExitStatus, String) {
         if let Some(child) = &self.child {

@@ -262,6 +262,18 @@ fn the_whole_chain_bridge_lcm_gateway_pty_dongle_drives() {
         "joints did not reach the end through the chain: {:?}",
         w.states.lock().unwrap().last()
     );
+    // A drive in fault: its emergency is published in the bridge's status.
+    rig.signal(libc::SIGUSR1);
+    assert!(
+        wait_for(&lcm, 5, || w
+            .status
+            .lock()
+            .unwrap()
+            .iter()
+            .any(|s| s.node == "stride-elmo-bridge"
+                && s.detail.contains("left_hip_yaw: emergency 0x2310"))),
+        "the fault was not published"
+    );
     let (st, out) = bridge.interrupt();
     assert!(st.success(), "{out}");
     let (st, out) = gateway.interrupt();

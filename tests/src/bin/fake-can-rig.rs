@@ -1,6 +1,6 @@
 //! `fake-can-rig`: a USB2CAN dongle on a pseudo-terminal with fake Elmo drives behind it, as a
 //! process, for the end-to-end tests. Writes the terminal's path to `--pty-file`, then runs
-//! until killed.
+//! until killed. SIGUSR1 puts the first drive in fault (an over-current), as a bench would. SIGUSR1 puts the first drive in fault (an over-current), as a bench would.
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -33,15 +33,26 @@ fn main() -> anyhow::Result<()> {
     let _dongle = FakeDongle::new(dongle_end, bus.node()).spawn(stop.clone());
     // The drives power up once the dongle is open (the gateway opened it).
     std::fs::write(&cli.pty_file, &path)?;
+    let fault = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGUSR1, fault.clone())?;
     let mut started = false;
+    let mut first = Levers::default();
     loop {
         std::thread::sleep(Duration::from_millis(200));
         if !started {
             started = true;
-            for &n in &cli.nodes {
-                FakeElmo::new(ElmoConfig::new(n), Levers::default())
-                    .spawn(bus.node(), stop.clone());
+            for (i, &n) in cli.nodes.iter().enumerate() {
+                let levers = Levers::default();
+                if i == 0 {
+                    first = levers.clone();
+                }
+                FakeElmo::new(ElmoConfig::new(n), levers).spawn(bus.node(), stop.clone());
             }
+        }
+        if fault.swap(false, std::sync::atomic::Ordering::Relaxed) {
+            first
+                .fault
+                .store(true, std::sync::atomic::Ordering::Relaxed);
         }
         // Keep the terminal's other end open for as long as the rig runs.
         let _ = &host_end;
