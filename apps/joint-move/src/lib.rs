@@ -1,0 +1,63 @@
+//! Smooth joint moves: a minimum-jerk profile sampled as a PVT trajectory.
+
+use stride_lcmtypes::stride::{HeaderT, JointTrajectoryT};
+
+/// A minimum-jerk move of each joint from `from` to `to` in `secs`, sampled every `dt`.
+pub fn min_jerk(
+    names: &[String],
+    from: &[f64],
+    to: &[f64],
+    secs: f64,
+    dt: f64,
+    header: HeaderT,
+) -> JointTrajectoryT {
+    let rows = (secs / dt).round().max(1.0) as usize + 1;
+    let s = |t: f64| {
+        let x = (t / secs).clamp(0.0, 1.0);
+        10.0 * x.powi(3) - 15.0 * x.powi(4) + 6.0 * x.powi(5)
+    };
+    let ds = |t: f64| {
+        let x = (t / secs).clamp(0.0, 1.0);
+        (30.0 * x.powi(2) - 60.0 * x.powi(3) + 30.0 * x.powi(4)) / secs
+    };
+    let times: Vec<f64> = (0..rows).map(|r| r as f64 * dt).collect();
+    JointTrajectoryT {
+        header,
+        start_utime: 0,
+        mode: JointTrajectoryT::MODE_PVT,
+        num_joints: names.len() as i32,
+        joint_names: names.to_vec(),
+        num_rows: rows as i32,
+        positions: times
+            .iter()
+            .map(|&t| {
+                from.iter()
+                    .zip(to)
+                    .map(|(a, b)| a + (b - a) * s(t))
+                    .collect()
+            })
+            .collect(),
+        velocities: times
+            .iter()
+            .map(|&t| from.iter().zip(to).map(|(a, b)| (b - a) * ds(t)).collect())
+            .collect(),
+        time_from_start: times,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn starts_and_ends_at_rest() {
+        let t = min_jerk(&["k".into()], &[0.0], &[1.0], 1.0, 0.01, HeaderT::default());
+        assert_eq!(t.num_rows, 101);
+        assert_eq!(t.positions[0][0], 0.0);
+        assert!((t.positions[100][0] - 1.0).abs() < 1e-12);
+        assert!(t.velocities[0][0].abs() < 1e-12 && t.velocities[100][0].abs() < 1e-12);
+        // Peak velocity of a minimum-jerk move: 1.875 x distance / time.
+        let peak = t.velocities.iter().map(|v| v[0]).fold(0.0, f64::max);
+        assert!((peak - 1.875).abs() < 1e-3);
+    }
+}

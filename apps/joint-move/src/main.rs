@@ -1,0 +1,115 @@
+//! `stride-joint-move`: move joints smoothly from where they are to where you say.
+
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use clap::Parser;
+use stride_lcmtypes::stride::{JointStateT, JointTrajectoryT};
+use stride_node::{Node, NodeArgs, Stamper};
+
+/// Move joints with a minimum-jerk profile: reads their positions from the joint states, then
+/// publishes one PVT trajectory (stride.joint_trajectory_t) to the target. The bridge checks
+/// it against the joints' limits before anything moves.
+///
+/// Example: stride-joint-move --move left_knee=0.8 --move left_hip_pitch=-0.4 --seconds 1.5
+#[derive(Parser, Debug)]
+#[command(version, about, long_about)]
+struct Cli {
+    #[command(flatten)]
+    node: NodeArgs,
+    /// JOINT=RADIANS, once per joint to move.
+    #[arg(long = "move", value_name = "JOINT=RAD", required = true)]
+    moves: Vec<String>,
+    /// Duration of the move, seconds.
+    #[arg(long, default_value_t = 1.0)]
+    seconds: f64,
+    /// Joint states to read the start from.
+    #[arg(long, default_value = "JOINT_STATE_LEFT_LEG")]
+    state_channel: String,
+    /// Where to publish the trajectory.
+    #[arg(long, default_value = "JOINT_TRAJECTORY_LEFT_LEG")]
+    trajectory_channel: String,
+    /// Wait for the joints to arrive (within 1 mrad) before exiting, at most this long (s).
+    #[arg(long, default_value_t = 5.0)]
+    wait: f64,
+}
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    let mut names = Vec::new();
+    let mut targets = Vec::new();
+    for m in &cli.moves {
+        let (name, value) = m
+            .split_once('=')
+            .with_context(|| format!("{m:?} is not JOINT=RAD"))?;
+        names.push(name.to_owned());
+        targets.push(
+            value
+                .parse::<f64>()
+                .with_context(|| format!("{value:?} is not a number"))?,
+        );
+    }
+    if cli.seconds.is_nan() || cli.seconds <= 0.0 {
+        bail!("--seconds must be positive");
+    }
+    let node = Node::start("stride-joint-move", &cli.node)?;
+    let latest: Arc<Mutex<Option<JointStateT>>> = Arc::default();
+    let l = latest.clone();
+    let _sub = node
+        .lcm()
+        .subscribe(&cli.state_channel, move |_, m: JointStateT| {
+            *l.lock().unwrap() = Some(m);
+        })?;
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while latest.lock().unwrap().is_none() {
+        if Instant::now() > deadline {
+            bail!(
+                "no joint states on {} (is the bridge running?)",
+                cli.state_channel
+            );
+        }
+        node.lcm().handle_timeout(Duration::from_millis(50))?;
+    }
+    let state = latest.lock().unwrap().clone().expect("seen");
+    let from: Vec<f64> = names
+        .iter()
+        .map(|n| {
+            state
+                .names
+                .iter()
+                .position(|x| x == n)
+                .map(|i| state.positions[i])
+                .with_context(|| format!("joint {n} is not in {}", cli.state_channel))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let traj: JointTrajectoryT = stride_joint_move::min_jerk(
+        &names,
+        &from,
+        &targets,
+        cli.seconds,
+        0.01,
+        Stamper::new("").stamp(),
+    );
+    node.lcm().publish(&cli.trajectory_channel, &traj)?;
+    println!(
+        "stride-joint-move: {} rows to {}",
+        traj.num_rows, cli.trajectory_channel
+    );
+    let deadline = Instant::now() + Duration::from_secs_f64(cli.wait.max(0.0));
+    while Instant::now() < deadline && node.running() {
+        node.lcm().handle_timeout(Duration::from_millis(50))?;
+        let s = latest.lock().unwrap().clone().expect("seen");
+        let arrived = names.iter().zip(&targets).all(|(n, t)| {
+            s.names
+                .iter()
+                .position(|x| x == n)
+                .is_some_and(|i| (s.positions[i] - t).abs() < 1e-3)
+        });
+        if arrived {
+            println!("stride-joint-move: arrived");
+            return Ok(());
+        }
+    }
+    bail!("the joints did not arrive within {} s", cli.wait)
+}
