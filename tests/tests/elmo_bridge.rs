@@ -172,9 +172,15 @@ fn a_stream_that_stops_mid_motion_quick_stops_the_axes() {
         .unwrap()
         .iter()
         .any(|s| s.state == NodeStatusT::STATE_RUNNING)));
-    // 2 s of motion in one message, then silence: after 0.5 s the axes quick-stop.
-    let t = trajectory(2.0, 0.5);
+    // The first 0.6 s of a 2 s move, a chunk that ends in motion, then silence: after the
+    // stream timeout the axes quick-stop.
+    let mut t = trajectory(2.0, 0.5);
+    t.num_rows = 61;
+    t.time_from_start.truncate(61);
+    t.positions.truncate(61);
+    t.velocities.truncate(61);
     lcm.publish("JOINT_TRAJECTORY_LEFT_LEG", &t).unwrap();
+    let t_full = trajectory(2.0, 0.5);
     assert!(wait_for(&lcm, 5, || w
         .status
         .lock()
@@ -184,7 +190,7 @@ fn a_stream_that_stops_mid_motion_quick_stops_the_axes() {
     std::thread::sleep(Duration::from_millis(300));
     wait_for(&lcm, 1, || false);
     let knee = w.states.lock().unwrap().last().unwrap().positions[3];
-    let end = t.positions.last().unwrap()[3];
+    let end = t_full.positions.last().unwrap()[3];
     assert!(
         knee < end - 0.05,
         "the knee should have stopped short of {end}: {knee}"

@@ -21,7 +21,8 @@ pub struct BridgeConfig {
     pub state_channel: String,
     /// Joint state rate (and SYNC rate), Hz.
     pub state_rate_hz: f64,
-    /// Quick stop when motion is under way and no trajectory came for this long (0: never).
+    /// Quick stop when the last trajectory ended in motion and no next one came for this long
+    /// (0: never).
     pub stream_timeout_ms: u64,
     /// `pvt` (Elmo PVT tables, cubic) or `ip` (CiA 402 interpolated position, linear, fixed
     /// period `ip_period_ms`).

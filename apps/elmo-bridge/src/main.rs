@@ -21,8 +21,9 @@ use stride_node::{load_config, Node, NodeArgs, Stamper};
 /// checked against every joint's position, velocity and acceleration limits (a trajectory past
 /// a limit is rejected whole and reported, never clipped) and streamed as Elmo PVT rows, or as
 /// CiA 402 interpolated position set-points (motion = "ip"). Joint
-/// states are published at the configured rate. When motion is under way and the trajectory
-/// stream stops for longer than stream_timeout_ms, every axis quick-stops. On shutdown the
+/// states are published at the configured rate. A trajectory that ends in motion is a chunk of
+/// a stream: when the next one does not come within stream_timeout_ms, every axis
+/// quick-stops (a trajectory ending at rest simply plays to its end). On shutdown the
 /// drives are disabled. With bus = "sim" fake drives run in this process; with bus =
 /// "lcm:NAME" the CAN bus is reached through a stride-usb2can gateway on the LCM network.
 #[derive(Parser, Debug)]
@@ -161,7 +162,8 @@ fn main() -> anyhow::Result<()> {
                 }
             }
         }
-        if watchdog.expired(now, master.idle()) {
+        // A move that ends at rest plays out; a stream cut in motion is stopped.
+        if watchdog.expired(now, master.idle() || master.ends_at_rest()) {
             tracing::warn!("trajectory stream stopped mid-motion: quick stop");
             master.quick_stop()?;
             node.set_health(

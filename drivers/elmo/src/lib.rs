@@ -176,6 +176,8 @@ struct Axis {
     heartbeat_lost: bool,
     rows_pending: Vec<PvtRow>,
     started: bool,
+    /// The last row loaded: a stream that stops in motion must be stopped.
+    last_row: Option<PvtRow>,
 }
 
 /// How trajectories reach the drives.
@@ -303,6 +305,7 @@ impl<B: CanBus> Master<B> {
                 heartbeat_lost: false,
                 rows_pending: Vec::new(),
                 started: false,
+                last_row: None,
             });
         }
         Ok(Master {
@@ -599,12 +602,14 @@ impl<B: CanBus> Master<B> {
                     time_ms: (dt * 1000.0).round().clamp(1.0, 255.0) as u8,
                 });
             }
-            // A final row holding the last position keeps the drive from running dry.
+            // A trajectory that ends at rest gets a final row holding its last position, so the
+            // drive plays the last segment to the end; one that ends in motion is a chunk of a
+            // stream, to be continued by the next trajectory.
             if let Some(last) = rows.last().copied() {
-                rows.push(PvtRow {
-                    velocity: 0,
-                    ..last
-                });
+                if last.velocity == 0 {
+                    rows.push(last);
+                }
+                self.axes[a].last_row = Some(last);
             }
             self.axes[a].rows_pending.extend(rows);
         }
@@ -700,6 +705,14 @@ impl<B: CanBus> Master<B> {
             }
         }
         Ok(())
+    }
+
+    /// True when what is loaded ends at rest on every joint (so running out of rows is the
+    /// normal end of a move, not a stream that stopped).
+    pub fn ends_at_rest(&self) -> bool {
+        self.axes
+            .iter()
+            .all(|a| a.last_row.is_none_or(|r| r.velocity == 0))
     }
 
     /// True when every joint has executed all its rows.
@@ -880,8 +893,12 @@ mod tests {
             std::thread::sleep(Duration::from_millis(5));
         }
         assert!(m.idle(), "trajectory not finished");
-        std::thread::sleep(Duration::from_millis(60));
-        m.pump(Instant::now()).unwrap();
+        // Let the motors settle, with fresh states (each SYNC's answer arrives after the pump
+        // that sent it).
+        for _ in 0..10 {
+            std::thread::sleep(Duration::from_millis(10));
+            m.pump(Instant::now()).unwrap();
+        }
         for (i, (name, s)) in m.states().into_iter().enumerate() {
             let want = *t.positions.last().unwrap().get(i).unwrap();
             max_err = max_err.max((s.position - want).abs());
@@ -1023,8 +1040,12 @@ mod tests {
             std::thread::sleep(Duration::from_millis(5));
         }
         assert!(m.idle(), "trajectory not finished");
-        std::thread::sleep(Duration::from_millis(60));
-        m.pump(Instant::now()).unwrap();
+        // Let the motors settle, with fresh states (each SYNC's answer arrives after the pump
+        // that sent it).
+        for _ in 0..10 {
+            std::thread::sleep(Duration::from_millis(10));
+            m.pump(Instant::now()).unwrap();
+        }
         for (i, (_, s)) in m.states().into_iter().enumerate() {
             let want = t.positions.last().unwrap()[i];
             assert!(
