@@ -842,6 +842,21 @@ mod tests {
         }
     }
 
+    /// Pumps until the master is idle, then lets the motors settle with fresh states (each
+    /// SYNC's answer arrives after the pump that sent it).
+    fn play<B: CanBus>(m: &mut Master<B>) {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !m.idle() && Instant::now() < deadline {
+            m.pump(Instant::now()).unwrap();
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!(m.idle(), "trajectory not finished");
+        for _ in 0..10 {
+            std::thread::sleep(Duration::from_millis(10));
+            m.pump(Instant::now()).unwrap();
+        }
+    }
+
     fn sine(joints: usize, rows: usize) -> Trajectory {
         let dt = 0.01;
         let w = std::f64::consts::TAU / (dt * (rows - 1) as f64);
@@ -886,19 +901,8 @@ mod tests {
         // 150 rows (1.5 s), more than the 64-row tables hold: refilled as the drives play.
         let t = sine(6, 150);
         m.load(&t).unwrap();
-        let deadline = Instant::now() + Duration::from_secs(10);
+        play(&mut m);
         let mut max_err: f64 = 0.0;
-        while !m.idle() && Instant::now() < deadline {
-            m.pump(Instant::now()).unwrap();
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        assert!(m.idle(), "trajectory not finished");
-        // Let the motors settle, with fresh states (each SYNC's answer arrives after the pump
-        // that sent it).
-        for _ in 0..10 {
-            std::thread::sleep(Duration::from_millis(10));
-            m.pump(Instant::now()).unwrap();
-        }
         for (i, (name, s)) in m.states().into_iter().enumerate() {
             let want = *t.positions.last().unwrap().get(i).unwrap();
             max_err = max_err.max((s.position - want).abs());
@@ -1034,18 +1038,7 @@ mod tests {
         m.bring_up().unwrap();
         let t = sine(3, 150);
         m.load(&t).unwrap();
-        let deadline = Instant::now() + Duration::from_secs(10);
-        while !m.idle() && Instant::now() < deadline {
-            m.pump(Instant::now()).unwrap();
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        assert!(m.idle(), "trajectory not finished");
-        // Let the motors settle, with fresh states (each SYNC's answer arrives after the pump
-        // that sent it).
-        for _ in 0..10 {
-            std::thread::sleep(Duration::from_millis(10));
-            m.pump(Instant::now()).unwrap();
-        }
+        play(&mut m);
         for (i, (_, s)) in m.states().into_iter().enumerate() {
             let want = t.positions.last().unwrap()[i];
             assert!(
