@@ -174,7 +174,7 @@ struct Axis {
     state: JointState,
     last_heartbeat: Option<Instant>,
     heartbeat_lost: bool,
-    rows_pending: Vec<PvtRow>,
+    rows_pending: std::collections::VecDeque<PvtRow>,
     started: bool,
     /// The last row loaded: a stream that stops in motion must be stopped.
     last_row: Option<PvtRow>,
@@ -303,7 +303,7 @@ impl<B: CanBus> Master<B> {
                 state: JointState::default(),
                 last_heartbeat: None,
                 heartbeat_lost: false,
-                rows_pending: Vec::new(),
+                rows_pending: std::collections::VecDeque::new(),
                 started: false,
                 last_row: None,
             });
@@ -638,7 +638,7 @@ impl<B: CanBus> Master<B> {
                 .expect("valid frame");
                 match self.bus.send(&f, now + self.cfg.sdo_timeout) {
                     Ok(()) => {
-                        self.axes[a].rows_pending.remove(0);
+                        self.axes[a].rows_pending.pop_front();
                         self.axes[a].queue.push();
                         sent_any = true;
                     }
