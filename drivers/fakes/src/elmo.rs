@@ -105,6 +105,8 @@ pub struct FakeElmo {
     sync_count: u32,
     booted: bool,
     ip_bit: bool,
+    /// Speed of the command while decelerating in quick stop, counts/s.
+    qs_velocity: f64,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -152,6 +154,7 @@ impl FakeElmo {
             sync_count: 0,
             booted: false,
             ip_bit: false,
+            qs_velocity: 0.0,
             cfg,
         };
         d.reset_od();
@@ -211,6 +214,8 @@ impl FakeElmo {
         put(ds402::TARGET_POSITION, 0, Rw, le(0, 4));
         put(ds402::FOLLOWING_ERROR, 0, Ro, le(0, 4));
         put(0x6065, 0, Rw, le(self.cfg.following_error_window as i64, 4));
+        // Quick stop deceleration, counts/s².
+        put(0x6085, 0, Rw, le(2_000_000, 4));
         put(ds402::IP_SUBMODE, 0, Rw, le(0, 2));
         put(ds402::IP_PERIOD, 1, Rw, vec![10]);
         put(ds402::IP_PERIOD, 2, Rw, vec![(-3i8) as u8]);
@@ -486,13 +491,23 @@ impl FakeElmo {
                     self.set_raw(0x1001, 0, 0);
                     self.levers.fault.store(false, Ordering::Relaxed);
                 }
-                self.motor_on = self.drive == DriveState::OperationEnabled;
-                if !self.motor_on {
+                if self.drive == DriveState::QuickStopActive
+                    && before != DriveState::QuickStopActive
+                {
+                    // Decelerate from the present speed (0x6085), then hold.
+                    self.qs_velocity = self.velocity;
+                }
+                self.motor_on = matches!(
+                    self.drive,
+                    DriveState::OperationEnabled | DriveState::QuickStopActive
+                );
+                if self.drive != DriveState::OperationEnabled {
                     self.motion = None;
                 }
                 // Interpolated position mode: bit 4 ("enable interpolation") starts the buffer.
                 let ip_mode = self.get_u(ds402::MODES_OF_OPERATION, 0) as i8 == 7;
-                if ip_mode && self.motor_on && cw & 0x10 != 0 && self.prev_ip_bit_clear() {
+                let enabled = self.drive == DriveState::OperationEnabled;
+                if ip_mode && enabled && cw & 0x10 != 0 && self.prev_ip_bit_clear() {
                     self.begin_motion(Instant::now());
                 }
                 self.ip_bit = cw & 0x10 != 0;
@@ -699,7 +714,7 @@ impl FakeElmo {
             (b"PX", None) => Ok(Value::Int(self.actual.round() as i32)),
             (b"MP", _) | (b"PV", _) => Ok(Value::Int(value(cmd.value))),
             (b"BG", _) => {
-                if !self.motor_on {
+                if self.drive != DriveState::OperationEnabled {
                     Err(21) // "motor must be on"
                 } else if self.written == self.executed {
                     Err(7)
@@ -794,6 +809,17 @@ impl FakeElmo {
                 self.commanded = hermite(&seg);
                 self.motion = Some(seg);
             }
+        }
+        // Quick stop: the command decelerates to a stop at 0x6085, then holds.
+        if self.drive == DriveState::QuickStopActive && dt > 0.0 {
+            let decel = self.get_u(0x6085, 0).max(1) as f64;
+            let dv = decel * dt;
+            self.qs_velocity = if self.qs_velocity.abs() <= dv {
+                0.0
+            } else {
+                self.qs_velocity - dv * self.qs_velocity.signum()
+            };
+            self.commanded += self.qs_velocity * dt;
         }
         // The motor follows its command with a first-order lag.
         if self.motor_on && dt > 0.0 {
@@ -1063,6 +1089,64 @@ mod tests {
             host.bus.recv(Instant::now() + Duration::from_millis(100)),
             Err(BusError::Timeout)
         );
+        stop.store(true, Ordering::Relaxed);
+        h.join().unwrap();
+    }
+
+    #[test]
+    fn quick_stop_decelerates_then_holds() {
+        let (mut host, stop, _, h) = start();
+        let node = host.node;
+        host.bus
+            .send(&nmt::encode(nmt::Command::Start, 3), Instant::now())
+            .unwrap();
+        for cw in [0x06u16, 0x0f] {
+            host.sdo_write(0x6040, 0, cw.to_le_bytes().to_vec())
+                .unwrap();
+        }
+        // A slow deceleration makes the stopping distance visible: 100 000 counts/s².
+        host.sdo_write(0x6085, 0, 100_000u32.to_le_bytes().to_vec())
+            .unwrap();
+        let cfg = pdo::PdoConfig {
+            direction: pdo::Direction::Receive,
+            number: 3,
+            transmission: 255,
+            entries: vec![pdo::MapEntry {
+                index: 0x2001,
+                sub: 0,
+                bits: 64,
+            }],
+        };
+        for (i, s, v) in cfg.sdo_writes(node) {
+            host.sdo_write(i, s, v).unwrap();
+        }
+        // A steady 20 000 counts/s ramp for 0.5 s.
+        for k in 0..=50 {
+            let row = PvtRow {
+                position: 200 * k,
+                velocity: 20_000,
+                time_ms: 10,
+            };
+            let f = CanFrame::standard(cfg.cob_id(node), &row.bytes().unwrap()).unwrap();
+            host.bus.send(&f, Instant::now()).unwrap();
+        }
+        let bg = Interp::set(b"BG", 0, Value::Int(0)).encode(node).unwrap();
+        host.bus.send(&bg, Instant::now()).unwrap();
+        std::thread::sleep(Duration::from_millis(150));
+        let pos = |host: &mut Host| {
+            let p = host.sdo_read(0x6064, 0).unwrap();
+            i32::from_le_bytes([p[0], p[1], p[2], p[3]])
+        };
+        host.sdo_write(0x6040, 0, 0x02u16.to_le_bytes().to_vec())
+            .unwrap();
+        let at_stop = pos(&mut host);
+        std::thread::sleep(Duration::from_millis(400));
+        let held = pos(&mut host);
+        std::thread::sleep(Duration::from_millis(100));
+        // v²/2a = 20 000² / 200 000 = 2000 counts of braking distance, then it holds.
+        assert!(held - at_stop > 1000, "stopped dead: {at_stop} -> {held}");
+        assert!(held < 200 * 50, "did not stop: {held}");
+        assert!((pos(&mut host) - held).abs() <= 2, "did not hold");
         stop.store(true, Ordering::Relaxed);
         h.join().unwrap();
     }
