@@ -71,7 +71,8 @@ fn now_us() -> i64 {
 }
 
 /// The client side of a bus carried over LCM: sends on `CAN_<BUS>_TX`, receives from
-/// `CAN_<BUS>_RX`. It owns its LCM instance and handles it inside `recv`.
+/// `CAN_<BUS>_RX`. It owns its LCM instance and handles it inside `recv`. Frames sent back to
+/// back are batched; `recv` (and [`LcmBus::flush`]) sends what waits.
 pub struct LcmBus {
     lcm: Lcm,
     name: String,
@@ -79,6 +80,7 @@ pub struct LcmBus {
     inbox: Arc<Mutex<VecDeque<CanFrame>>>,
     _sub: Subscription,
     sequence: i64,
+    outbox: Vec<CanFrameT>,
 }
 
 impl std::fmt::Debug for LcmBus {
@@ -108,7 +110,26 @@ impl LcmBus {
             inbox,
             _sub: sub,
             sequence: 0,
+            outbox: Vec::new(),
         })
+    }
+
+    /// Publishes the frames waiting in the outbox as one batch.
+    pub fn flush(&mut self) -> Result<(), BusError> {
+        if self.outbox.is_empty() {
+            return Ok(());
+        }
+        let header = HeaderT {
+            utime: now_us(),
+            sequence: self.sequence,
+            frame: String::new(),
+        };
+        self.sequence += 1;
+        let msg = batch(&self.name, header, &self.outbox);
+        self.outbox.clear();
+        self.lcm
+            .publish(&self.tx, &msg)
+            .map_err(|e| BusError::Device(e.to_string()))
     }
 
     fn pop(&self) -> Option<CanFrame> {
@@ -119,21 +140,26 @@ impl LcmBus {
     }
 }
 
+impl Drop for LcmBus {
+    fn drop(&mut self) {
+        // The last frames (an NMT command at shutdown) must not stay behind.
+        let _ = self.flush();
+    }
+}
+
 impl CanBus for LcmBus {
     fn send(&mut self, frame: &CanFrame, _deadline: Instant) -> Result<(), BusError> {
-        let header = HeaderT {
-            utime: now_us(),
-            sequence: self.sequence,
-            frame: String::new(),
-        };
-        self.sequence += 1;
-        let msg = batch(&self.name, header, &[frame_to_msg(frame, now_us())]);
-        self.lcm
-            .publish(&self.tx, &msg)
-            .map_err(|e| BusError::Device(e.to_string()))
+        // Frames sent back to back travel in one batch: flushed when 64 are waiting, or as
+        // soon as the caller turns to receiving.
+        self.outbox.push(frame_to_msg(frame, now_us()));
+        if self.outbox.len() >= 64 {
+            self.flush()?;
+        }
+        Ok(())
     }
 
     fn recv(&mut self, deadline: Instant) -> Result<CanFrame, BusError> {
+        self.flush()?;
         loop {
             if let Some(f) = self.pop() {
                 return Ok(f);
