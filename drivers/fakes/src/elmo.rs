@@ -926,6 +926,36 @@ mod tests {
             }
         }
 
+        /// Maps RPDO3 to the PVT object, streams a ramp of `rows` + 1 rows (`step` counts
+        /// apart, 10 ms each, at `velocity` counts/s) and starts it with `BG`.
+        fn stream_ramp(&mut self, rows: i32, step: i32, velocity: i32) {
+            let node = self.node;
+            let cfg = pdo::PdoConfig {
+                direction: pdo::Direction::Receive,
+                number: 3,
+                transmission: 255,
+                entries: vec![pdo::MapEntry {
+                    index: 0x2001,
+                    sub: 0,
+                    bits: 64,
+                }],
+            };
+            for (i, s, v) in cfg.sdo_writes(node) {
+                self.sdo_write(i, s, v).unwrap();
+            }
+            for k in 0..=rows {
+                let row = PvtRow {
+                    position: step * k,
+                    velocity,
+                    time_ms: 10,
+                };
+                let f = CanFrame::standard(cfg.cob_id(node), &row.bytes().unwrap()).unwrap();
+                self.bus.send(&f, Instant::now()).unwrap();
+            }
+            let bg = Interp::set(b"BG", 0, Value::Int(0)).encode(node).unwrap();
+            self.bus.send(&bg, Instant::now()).unwrap();
+        }
+
         fn sdo_read(&mut self, index: u16, sub: u8) -> Result<Vec<u8>, AbortCode> {
             let mut up = Upload::new(index, sub, 256);
             let mut req = up.start();
@@ -991,7 +1021,6 @@ mod tests {
     #[test]
     fn ds402_enable_pvt_motion_and_underflow() {
         let (mut host, stop, _, h) = start();
-        let node = host.node;
         // Operational, then shutdown / switch on / enable through the controlword.
         host.bus
             .send(&nmt::encode(nmt::Command::Start, 3), Instant::now())
@@ -1006,30 +1035,7 @@ mod tests {
             DriveState::OperationEnabled
         );
         // Map RPDO3 to the PVT object, then stream 10 rows of a ramp to 1000 counts.
-        let cfg = pdo::PdoConfig {
-            direction: pdo::Direction::Receive,
-            number: 3,
-            transmission: 255,
-            entries: vec![pdo::MapEntry {
-                index: 0x2001,
-                sub: 0,
-                bits: 64,
-            }],
-        };
-        for (i, s, v) in cfg.sdo_writes(node) {
-            host.sdo_write(i, s, v).unwrap();
-        }
-        for k in 0..=10 {
-            let row = PvtRow {
-                position: 100 * k,
-                velocity: 10_000,
-                time_ms: 10,
-            };
-            let f = CanFrame::standard(cfg.cob_id(node), &row.bytes().unwrap()).unwrap();
-            host.bus.send(&f, Instant::now()).unwrap();
-        }
-        let bg = Interp::set(b"BG", 0, Value::Int(0)).encode(node).unwrap();
-        host.bus.send(&bg, Instant::now()).unwrap();
+        host.stream_ramp(10, 100, 10_000);
         let r = host.recv_until(|f| f.raw_id() == 0x283);
         assert_eq!(Reply::decode(r.data()).unwrap().result, Ok(Value::Int(0)));
         // The queue runs low, then dry: both are announced by EMCY.
@@ -1096,7 +1102,6 @@ mod tests {
     #[test]
     fn quick_stop_decelerates_then_holds() {
         let (mut host, stop, _, h) = start();
-        let node = host.node;
         host.bus
             .send(&nmt::encode(nmt::Command::Start, 3), Instant::now())
             .unwrap();
@@ -1107,31 +1112,8 @@ mod tests {
         // A slow deceleration makes the stopping distance visible: 100 000 counts/s².
         host.sdo_write(0x6085, 0, 100_000u32.to_le_bytes().to_vec())
             .unwrap();
-        let cfg = pdo::PdoConfig {
-            direction: pdo::Direction::Receive,
-            number: 3,
-            transmission: 255,
-            entries: vec![pdo::MapEntry {
-                index: 0x2001,
-                sub: 0,
-                bits: 64,
-            }],
-        };
-        for (i, s, v) in cfg.sdo_writes(node) {
-            host.sdo_write(i, s, v).unwrap();
-        }
         // A steady 20 000 counts/s ramp for 0.5 s.
-        for k in 0..=50 {
-            let row = PvtRow {
-                position: 200 * k,
-                velocity: 20_000,
-                time_ms: 10,
-            };
-            let f = CanFrame::standard(cfg.cob_id(node), &row.bytes().unwrap()).unwrap();
-            host.bus.send(&f, Instant::now()).unwrap();
-        }
-        let bg = Interp::set(b"BG", 0, Value::Int(0)).encode(node).unwrap();
-        host.bus.send(&bg, Instant::now()).unwrap();
+        host.stream_ramp(50, 200, 20_000);
         std::thread::sleep(Duration::from_millis(150));
         let pos = |host: &mut Host| {
             let p = host.sdo_read(0x6064, 0).unwrap();
