@@ -595,19 +595,11 @@ impl FakeElmo {
             }
             ClientRequest::UploadSegment { toggle } => {
                 let Some(up) = self.upload.as_mut() else {
-                    return ServerResponse::Abort {
-                        index: 0,
-                        sub: 0,
-                        code: AbortCode::BAD_COMMAND,
-                    };
+                    return transfer_abort(AbortCode::BAD_COMMAND);
                 };
                 if toggle != up.toggle {
                     self.upload = None;
-                    return ServerResponse::Abort {
-                        index: 0,
-                        sub: 0,
-                        code: AbortCode::TOGGLE,
-                    };
+                    return transfer_abort(AbortCode::TOGGLE);
                 }
                 up.toggle = !up.toggle;
                 let n = up.data.len().min(7);
@@ -641,19 +633,11 @@ impl FakeElmo {
             },
             ClientRequest::DownloadSegment { toggle, data, last } => {
                 let Some(dl) = self.download.as_mut() else {
-                    return ServerResponse::Abort {
-                        index: 0,
-                        sub: 0,
-                        code: AbortCode::BAD_COMMAND,
-                    };
+                    return transfer_abort(AbortCode::BAD_COMMAND);
                 };
                 if toggle != dl.toggle {
                     self.download = None;
-                    return ServerResponse::Abort {
-                        index: 0,
-                        sub: 0,
-                        code: AbortCode::TOGGLE,
-                    };
+                    return transfer_abort(AbortCode::TOGGLE);
                 }
                 dl.toggle = !dl.toggle;
                 dl.data.extend_from_slice(&data);
@@ -672,11 +656,7 @@ impl FakeElmo {
             ClientRequest::Abort { .. } => {
                 self.upload = None;
                 self.download = None;
-                ServerResponse::Abort {
-                    index: 0,
-                    sub: 0,
-                    code: AbortCode::GENERAL,
-                }
+                transfer_abort(AbortCode::GENERAL)
             }
         }
     }
@@ -849,6 +829,15 @@ impl FakeElmo {
             manufacturer: [0; 5],
         };
         self.emcy(bus, e);
+    }
+}
+
+/// An abort of the segmented transfer in progress (or of none), as this fake reports it.
+fn transfer_abort(code: AbortCode) -> ServerResponse {
+    ServerResponse::Abort {
+        index: 0,
+        sub: 0,
+        code,
     }
 }
 
