@@ -882,15 +882,27 @@ mod tests {
         }
     }
 
+    /// Fake drives with node ids 1, 2, … on `bus`, one per lever set.
+    fn spawn_drives(
+        bus: &MemBus,
+        levers: &[Levers],
+        stop: &Arc<AtomicBool>,
+    ) -> Vec<std::thread::JoinHandle<FakeElmo>> {
+        levers
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                FakeElmo::new(ElmoConfig::new(i as u8 + 1), l.clone())
+                    .spawn(bus.node(), stop.clone())
+            })
+            .collect()
+    }
+
     #[test]
     fn six_drives_walk_a_trajectory() {
         let bus = MemBus::new(1_000_000);
         let stop = Arc::new(AtomicBool::new(false));
-        let drives: Vec<_> = (1..=6)
-            .map(|i| {
-                FakeElmo::new(ElmoConfig::new(i), Levers::default()).spawn(bus.node(), stop.clone())
-            })
-            .collect();
+        let drives = spawn_drives(&bus, &vec![Levers::default(); 6], &stop);
         let mut m = Master::new(
             bus.node(),
             (1..=6).map(joint).collect(),
@@ -965,12 +977,7 @@ mod tests {
         let bus = MemBus::new(1_000_000);
         let stop = Arc::new(AtomicBool::new(false));
         let levers: Vec<Levers> = (0..2).map(|_| Levers::default()).collect();
-        let drives: Vec<_> = (1..=2)
-            .map(|i| {
-                FakeElmo::new(ElmoConfig::new(i), levers[i as usize - 1].clone())
-                    .spawn(bus.node(), stop.clone())
-            })
-            .collect();
+        let drives = spawn_drives(&bus, &levers, &stop);
         let mut m = Master::new(
             bus.node(),
             (1..=2).map(joint).collect(),
@@ -1025,11 +1032,7 @@ mod tests {
     fn interpolated_position_mode_walks_the_same_trajectory() {
         let bus = MemBus::new(1_000_000);
         let stop = Arc::new(AtomicBool::new(false));
-        let drives: Vec<_> = (1..=3)
-            .map(|i| {
-                FakeElmo::new(ElmoConfig::new(i), Levers::default()).spawn(bus.node(), stop.clone())
-            })
-            .collect();
+        let drives = spawn_drives(&bus, &vec![Levers::default(); 3], &stop);
         let cfg = MasterConfig {
             motion: Motion::InterpolatedPosition { period_ms: 10 },
             ..Default::default()
