@@ -24,11 +24,16 @@ pub struct BridgeConfig {
     /// Quick stop when the last trajectory ended in motion and no next one came for this long
     /// (0: never).
     pub stream_timeout_ms: u64,
-    /// `pvt` (Elmo PVT tables, cubic) or `ip` (CiA 402 interpolated position, linear, fixed
-    /// period `ip_period_ms`).
+    /// `pvt` (Elmo PVT tables, cubic), `pt` (Elmo PT tables: positions every `pt_period_ms`,
+    /// cubic) or `ip` (CiA 402 interpolated position, linear, fixed period `ip_period_ms`).
     pub motion: String,
     /// The fixed set-point period in `ip` mode, ms.
     pub ip_period_ms: u8,
+    /// The point period in `pt` mode, ms (a whole number of the drives' position-loop samples).
+    pub pt_period_ms: u8,
+    /// After a bus failure (bus-off, a dongle unplugged), the first attempt to bring the
+    /// drives up again waits this long; each failed attempt doubles it, up to 10 s.
+    pub recovery_delay_ms: u64,
     /// The joints.
     pub joint: Vec<JointConfig>,
 }
@@ -44,6 +49,8 @@ impl Default for BridgeConfig {
             stream_timeout_ms: 500,
             motion: "pvt".into(),
             ip_period_ms: 10,
+            pt_period_ms: 10,
+            recovery_delay_ms: 500,
             joint: Vec::new(),
         }
     }
@@ -91,8 +98,12 @@ impl BridgeConfig {
             "ip" if self.ip_period_ms > 0 => Ok(stride_elmo::Motion::InterpolatedPosition {
                 period_ms: self.ip_period_ms,
             }),
+            "pt" if self.pt_period_ms > 0 => Ok(stride_elmo::Motion::Pt {
+                period_ms: self.pt_period_ms,
+            }),
             other => Err(format!(
-                "motion {other:?}: use \"pvt\" or \"ip\" (with ip_period_ms 1..=255)"
+                "motion {other:?}: use \"pvt\", \"pt\" (with pt_period_ms 1..=255) or \"ip\" \
+                 (with ip_period_ms 1..=255)"
             )),
         }
     }
@@ -169,6 +180,54 @@ impl Watchdog {
     }
 }
 
+/// When to try bringing the drives up again after the bus failed: after a delay that doubles
+/// with every failed attempt (up to 10 s), so a dongle plugged back in or a bus that recovers
+/// from bus-off is picked up without flooding it.
+#[derive(Debug, Clone)]
+pub struct Recovery {
+    first: Duration,
+    delay: Duration,
+    next: Option<Instant>,
+}
+
+impl Recovery {
+    /// Longest wait between attempts.
+    pub const MAX_DELAY: Duration = Duration::from_secs(10);
+
+    /// A policy whose first retry comes `first_ms` after a failure.
+    pub fn new(first_ms: u64) -> Recovery {
+        let first = Duration::from_millis(first_ms.max(1));
+        Recovery {
+            first,
+            delay: first,
+            next: None,
+        }
+    }
+
+    /// The bus failed (or an attempt to recover did): the next attempt is due after the
+    /// current delay, which then doubles.
+    pub fn failed(&mut self, now: Instant) {
+        self.next = Some(now + self.delay);
+        self.delay = (self.delay * 2).min(Self::MAX_DELAY);
+    }
+
+    /// True while the drives are to be considered down.
+    pub fn pending(&self) -> bool {
+        self.next.is_some()
+    }
+
+    /// True when an attempt is due now.
+    pub fn due(&self, now: Instant) -> bool {
+        self.next.is_some_and(|t| now >= t)
+    }
+
+    /// The drives are up again: back to the first delay.
+    pub fn succeeded(&mut self) {
+        self.next = None;
+        self.delay = self.first;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -203,6 +262,27 @@ mod tests {
         w.feed(t0 + Duration::from_millis(300));
         assert!(!w.expired(t0 + Duration::from_millis(350), false));
         assert!(!Watchdog::new(0).expired(t0 + Duration::from_secs(9), false));
+    }
+
+    #[test]
+    fn recovery_backs_off_and_resets() {
+        let t0 = Instant::now();
+        let ms = Duration::from_millis;
+        let mut r = Recovery::new(100);
+        assert!(!r.pending() && !r.due(t0));
+        r.failed(t0);
+        assert!(r.pending() && !r.due(t0 + ms(99)) && r.due(t0 + ms(100)));
+        // Each failed attempt doubles the wait, up to the ceiling.
+        r.failed(t0 + ms(100));
+        assert!(!r.due(t0 + ms(299)) && r.due(t0 + ms(300)));
+        for _ in 0..10 {
+            r.failed(t0);
+        }
+        assert!(!r.due(t0 + ms(9999)) && r.due(t0 + Recovery::MAX_DELAY));
+        r.succeeded();
+        assert!(!r.pending());
+        r.failed(t0);
+        assert!(r.due(t0 + ms(100)));
     }
 
     #[test]

@@ -9,7 +9,7 @@ use anyhow::{bail, Context};
 use clap::Parser;
 use stride_canbus::{CanBus, MemBus};
 use stride_elmo::{Event, Master, MasterConfig};
-use stride_elmo_bridge::{state_msg, trajectory_from_msg, BridgeConfig, Watchdog};
+use stride_elmo_bridge::{state_msg, trajectory_from_msg, BridgeConfig, Recovery, Watchdog};
 use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
 use stride_lcmtypes::stride::{JointTrajectoryT, NodeStatusT};
 use stride_node::{load_config, Node, NodeArgs, Stamper};
@@ -19,12 +19,14 @@ use stride_node::{load_config, Node, NodeArgs, Stamper};
 /// At start it brings every configured drive up (identity, heartbeat, PDO mapping verified,
 /// CiA 402 enable) and refuses to run otherwise. Trajectories (stride.joint_trajectory_t) are
 /// checked against every joint's position, velocity and acceleration limits (a trajectory past
-/// a limit is rejected whole and reported, never clipped) and streamed as Elmo PVT rows, or as
-/// CiA 402 interpolated position set-points (motion = "ip"). Joint
-/// states are published at the configured rate. A trajectory that ends in motion is a chunk of
-/// a stream: when the next one does not come within stream_timeout_ms, every axis
-/// quick-stops (a trajectory ending at rest simply plays to its end). On shutdown the
-/// drives are disabled. With bus = "sim" fake drives run in this process; with bus =
+/// a limit is rejected whole and reported, never clipped) and streamed as Elmo PVT rows, Elmo
+/// PT points (motion = "pt"), or CiA 402 interpolated position set-points (motion = "ip").
+/// Joint states are published at the configured rate. A trajectory that ends in motion is a
+/// chunk of a stream: when the next one does not come within stream_timeout_ms, every axis
+/// quick-stops (a trajectory ending at rest simply plays to its end). When the bus fails
+/// (bus-off, a dongle unplugged) the bridge reports it, drops what was not yet played, and
+/// brings the drives up again once the bus answers (retrying with a growing delay); a motion
+/// cut off is not resumed. On shutdown the drives are disabled. With bus = "sim" fake drives run in this process; with bus =
 /// "lcm:NAME" the CAN bus is reached through a stride-usb2can gateway on the LCM network.
 #[derive(Parser, Debug)]
 #[command(version, about, long_about)]
@@ -109,6 +111,7 @@ fn main() -> anyhow::Result<()> {
     let period = Duration::from_secs_f64(1.0 / cfg.state_rate_hz);
     let mut next = Instant::now();
     let mut rejected = 0u64;
+    let mut recovery = Recovery::new(cfg.recovery_delay_ms);
     while node.running() {
         let now = Instant::now();
         if now < next {
@@ -116,6 +119,33 @@ fn main() -> anyhow::Result<()> {
             continue;
         }
         next += period;
+        if recovery.pending() {
+            // The drives are down: nothing is loaded until they are up again.
+            while let Ok(m) = rx.try_recv() {
+                rejected += 1;
+                tracing::warn!(
+                    rejected,
+                    joints = m.joint_names.len(),
+                    "trajectory rejected: the drives are down"
+                );
+            }
+            if !recovery.due(now) {
+                continue;
+            }
+            match master.recover() {
+                Ok(()) => {
+                    recovery.succeeded();
+                    tracing::info!("drives up again");
+                    node.set_running();
+                }
+                Err(e) => {
+                    recovery.failed(Instant::now());
+                    tracing::warn!(error = %e, "drives still down");
+                    node.set_health(NodeStatusT::STATE_FAULT, format!("recovering: {e}"));
+                    continue;
+                }
+            }
+        }
         while let Ok(m) = rx.try_recv() {
             match master.load(&trajectory_from_msg(&m)) {
                 Ok(()) => watchdog.feed(now),
@@ -130,10 +160,14 @@ fn main() -> anyhow::Result<()> {
             }
         }
         if let Err(e) = master.pump(now) {
-            // Bus-off or a dead interface: report it and keep trying; the drives stop on
-            // their own when their tables run dry.
+            // Bus-off or a dead interface: report it, then bring the drives up again once the
+            // bus answers; the drives stop on their own when their tables run dry.
             tracing::error!(error = %e, "CAN cycle failed");
-            node.set_health(NodeStatusT::STATE_FAULT, format!("CAN: {e}"));
+            node.set_health(
+                NodeStatusT::STATE_FAULT,
+                format!("CAN: {e}; bringing the drives up again when the bus answers"),
+            );
+            recovery.failed(now);
             continue;
         }
         for e in master.take_events() {
@@ -159,6 +193,30 @@ fn main() -> anyhow::Result<()> {
                 Event::HeartbeatLost { joint } => {
                     tracing::error!(joint = joint.as_str(), "heartbeat lost");
                     node.set_health(NodeStatusT::STATE_FAULT, format!("{joint}: heartbeat lost"));
+                }
+                Event::Rebooted { joint } => {
+                    // One axis lost its state: stop them all, then bring them all up again.
+                    tracing::error!(
+                        joint = joint.as_str(),
+                        "drive reset: quick stop, then recovery"
+                    );
+                    let _ = master.quick_stop();
+                    node.set_health(
+                        NodeStatusT::STATE_FAULT,
+                        format!("{joint}: drive reset; bringing the drives up again"),
+                    );
+                    recovery.failed(now);
+                }
+                Event::InterpreterError {
+                    joint,
+                    command,
+                    code,
+                } => {
+                    tracing::error!(joint = joint.as_str(), command, code, "drive refused");
+                    node.set_health(
+                        NodeStatusT::STATE_DEGRADED,
+                        format!("{joint}: the drive refused {command} (error {code})"),
+                    );
                 }
             }
         }

@@ -243,6 +243,17 @@ impl PvtQueue {
         Some(((self.written - 1) % self.rows as u64) as u16 + 1)
     }
 
+    /// The 1-based table index of the next row to execute (`PV=n` / `PT=n` before `BG`).
+    pub fn read_index(&self) -> u16 {
+        (self.executed % self.rows as u64) as u16 + 1
+    }
+
+    /// Counts every written row as executed (the drive ended the motion: what was left is
+    /// dropped); the write index carries on.
+    pub fn drain(&mut self) {
+        self.executed = self.written;
+    }
+
     /// Updates from the drive's read pointer (1-based table index of the next row it will
     /// execute), as reported in a TPDO or a queue-low emergency.
     pub fn on_read_pointer(&mut self, read: u16) {
@@ -331,5 +342,10 @@ mod tests {
         }
         q.on_read_pointer(5); // wrapped: 64 + 4 executed
         assert_eq!(q.pending(), 74 - 68);
+        assert_eq!(q.read_index(), 5);
+        // The drive ended the motion: the next one starts where the write pointer is.
+        q.drain();
+        assert_eq!((q.pending(), q.read_index()), (0, 11));
+        assert_eq!(q.push(), Some(11));
     }
 }

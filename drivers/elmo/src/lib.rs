@@ -1,15 +1,18 @@
 //! Drives Elmo motion controllers over CANopen, generic over the CAN bus ([`CanBus`]):
-//! bring-up (boot-up, identity, heartbeat, PDO mapping verified by read-back, NMT start,
-//! CiA 402 enable), joint trajectories streamed as PVT rows while each drive's 64-row table is
+//! bring-up (boot-up, identity, heartbeat, PDO mapping verified by read-back, NMT start, table
+//! set-up with the interpreter's `MP[1..6]`, CiA 402 enable), joint trajectories streamed as
+//! PVT rows, PT points or CiA 402 interpolated-position set-points while each drive's table is
 //! tracked, limits checked before anything is sent, joint states from the SYNC-driven TPDO,
-//! emergencies turned into events, quick stop and disable.
+//! emergencies turned into events, quick stop, recovery and disable.
 
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
 use stride_canbus::{BusError, CanBus, CanFrame};
 use stride_canopen::ds402::{self, State as DriveState};
-use stride_canopen::elmo::{Command as Interp, PvtQueue, PvtRow, Value, PVT_ROWS};
+use stride_canopen::elmo::{
+    pt_bytes, Command as Interp, PvtQueue, PvtRow, Reply, Value, PT_OBJECT, PVT_ROWS,
+};
 use stride_canopen::emcy::{ElmoEmcy, Emcy};
 use stride_canopen::frame::{CobId, Function, NodeId};
 use stride_canopen::nmt;
@@ -122,6 +125,28 @@ pub enum MasterError {
     /// The trajectory's shape is wrong (joint names, sizes, times).
     #[error("bad trajectory: {0}")]
     BadTrajectory(String),
+    /// A drive's binary interpreter refused a command.
+    #[error("{joint} (node {node}): the drive refused {command} (interpreter error {code})")]
+    Interpreter {
+        /// Joint.
+        joint: String,
+        /// Node id.
+        node: u8,
+        /// The command, e.g. `MP[4]=50`.
+        command: String,
+        /// The drive's error code.
+        code: u32,
+    },
+    /// The drive cannot be set up as configured.
+    #[error("{joint} (node {node}): {what}")]
+    Setup {
+        /// Joint.
+        joint: String,
+        /// Node id.
+        node: u8,
+        /// What does not fit.
+        what: String,
+    },
 }
 
 /// A trajectory in joint space: rows of positions (and velocities) at times.
@@ -154,6 +179,22 @@ pub enum Event {
         /// Joint.
         joint: String,
     },
+    /// A drive that was up sent a boot-up message: it reset (power loss, watchdog) and has to
+    /// be brought up again ([`Master::recover`]).
+    Rebooted {
+        /// Joint.
+        joint: String,
+    },
+    /// A drive's interpreter answered a command sent while running (`PV`, `PT`, `BG`) with an
+    /// error.
+    InterpreterError {
+        /// Joint.
+        joint: String,
+        /// The command, e.g. `BG`.
+        command: String,
+        /// The drive's error code.
+        code: u32,
+    },
 }
 
 /// The measured state of one joint.
@@ -178,6 +219,8 @@ struct Axis {
     started: bool,
     /// The last row loaded: a stream that stops in motion must be stopped.
     last_row: Option<PvtRow>,
+    /// Brought up and enabled (a boot-up message then means the drive reset).
+    up: bool,
 }
 
 /// How trajectories reach the drives.
@@ -192,6 +235,50 @@ pub enum Motion {
         /// The fixed time between set-points, ms (0x60C2).
         period_ms: u8,
     },
+    /// Elmo PT: positions only, at a fixed period, two per frame through object 0x2002, played
+    /// by the drive with cubic interpolation; started with `PT=n` and `BG`. Trajectories are
+    /// resampled at the period (a chunk of a stream should span a whole number of periods).
+    Pt {
+        /// Time between points, ms: a whole number of the drive's position-loop samples
+        /// (4 × `TS` µs), checked at bring-up; sets `MP[4]`.
+        period_ms: u8,
+    },
+}
+
+/// Points of the PT ring the master sets up (`MP[1]=1`, `MP[2]=PT_POINTS`).
+pub const PT_POINTS: u16 = 256;
+
+impl Motion {
+    /// Rows (points) of the drive's table this mode uses.
+    fn table_rows(self) -> u16 {
+        match self {
+            Motion::Pt { .. } => PT_POINTS,
+            _ => PVT_ROWS,
+        }
+    }
+
+    /// Table rows carried by one set-point frame.
+    fn rows_per_frame(self) -> usize {
+        match self {
+            Motion::Pt { .. } => 2,
+            _ => 1,
+        }
+    }
+}
+
+/// `MP[4]=50`, `TS`: an interpreter command as the manuals write it.
+fn command_text(cmd: &Interp) -> String {
+    let name = String::from_utf8_lossy(&cmd.name);
+    let index = if cmd.index > 0 {
+        format!("[{}]", cmd.index)
+    } else {
+        String::new()
+    };
+    match cmd.value {
+        Some(Value::Int(v)) => format!("{name}{index}={v}"),
+        Some(Value::Float(v)) => format!("{name}{index}={v}"),
+        None => format!("{name}{index}"),
+    }
 }
 
 /// Settings of the master.
@@ -224,8 +311,8 @@ pub struct Master<B: CanBus> {
     events: Vec<Event>,
 }
 
-/// The set-point RPDO: RPDO3 carrying object 0x2001 (a PVT row per frame), or 0x60C1:1 (an
-/// interpolated position set-point per frame).
+/// The set-point RPDO: RPDO3 carrying object 0x2001 (a PVT row per frame), 0x2002 (two PT
+/// points per frame), or 0x60C1:1 (an interpolated position set-point per frame).
 fn setpoint_rpdo(motion: Motion) -> PdoConfig {
     let entry = match motion {
         Motion::Pvt => MapEntry {
@@ -237,6 +324,11 @@ fn setpoint_rpdo(motion: Motion) -> PdoConfig {
             index: ds402::IP_DATA,
             sub: 1,
             bits: 32,
+        },
+        Motion::Pt { .. } => MapEntry {
+            index: PT_OBJECT,
+            sub: 0,
+            bits: 64,
         },
     };
     PdoConfig {
@@ -299,13 +391,14 @@ impl<B: CanBus> Master<B> {
             axes.push(Axis {
                 cfg: j,
                 node,
-                queue: PvtQueue::new(PVT_ROWS),
+                queue: PvtQueue::new(cfg.motion.table_rows()),
                 state: JointState::default(),
                 last_heartbeat: None,
                 heartbeat_lost: false,
                 rows_pending: std::collections::VecDeque::new(),
                 started: false,
                 last_row: None,
+                up: false,
             });
         }
         Ok(Master {
@@ -334,33 +427,112 @@ impl<B: CanBus> Master<B> {
         Ok(self.bus.send(f, Instant::now() + self.cfg.sdo_timeout)?)
     }
 
-    /// One SDO exchange with axis `a`; other frames seen meanwhile are processed.
-    fn sdo(&mut self, a: usize, req: sdo::ClientRequest) -> Result<ServerResponse, MasterError> {
-        let node = self.axes[a].node;
-        let frame = req.encode(node).expect("valid request");
-        self.send(&frame)?;
+    /// Sends `frame` to axis `a` and waits for the frame `answer` accepts; other frames seen
+    /// meanwhile are processed. `what` names the request in a timeout error.
+    fn exchange<T>(
+        &mut self,
+        a: usize,
+        frame: &CanFrame,
+        what: impl FnOnce() -> String,
+        mut answer: impl FnMut(&CanFrame) -> Option<T>,
+    ) -> Result<T, MasterError> {
+        self.send(frame)?;
         let deadline = Instant::now() + self.cfg.sdo_timeout;
-        let want = CobId::of(Function::SdoTx, node).raw() as u32;
         loop {
             let f = match self.bus.recv(deadline) {
                 Ok(f) => f,
                 Err(BusError::Timeout) => {
                     return Err(MasterError::NoAnswer {
                         joint: self.axes[a].cfg.name.clone(),
-                        node: node.get(),
-                        what: format!("{req:?}"),
+                        node: self.axes[a].node.get(),
+                        what: what(),
                     })
                 }
                 Err(e) => return Err(e.into()),
             };
-            if f.raw_id() == want {
-                if let Ok((_, resp)) = ServerResponse::decode(&f) {
-                    return Ok(resp);
-                }
-            } else {
-                self.on_frame(&f, Instant::now());
+            match answer(&f) {
+                Some(t) => return Ok(t),
+                None => self.on_frame(&f, Instant::now()),
             }
         }
+    }
+
+    /// One SDO exchange with axis `a`.
+    fn sdo(&mut self, a: usize, req: sdo::ClientRequest) -> Result<ServerResponse, MasterError> {
+        let node = self.axes[a].node;
+        let want = CobId::of(Function::SdoTx, node).raw() as u32;
+        let frame = req.encode(node).expect("valid request");
+        self.exchange(
+            a,
+            &frame,
+            || format!("{req:?}"),
+            |f| {
+                (f.raw_id() == want)
+                    .then(|| ServerResponse::decode(f).ok().map(|(_, r)| r))
+                    .flatten()
+            },
+        )
+    }
+
+    /// One binary-interpreter exchange with axis `a` over PDO2 (RPDO2 out, TPDO2 back).
+    pub fn interpret(&mut self, a: usize, cmd: Interp) -> Result<Value, MasterError> {
+        let node = self.axes[a].node;
+        let want = CobId::of(Function::Tpdo(2), node).raw() as u32;
+        let frame = cmd.encode(node).expect("valid command");
+        let result = self.exchange(
+            a,
+            &frame,
+            || command_text(&cmd),
+            |f| match Reply::decode(f.data()) {
+                Ok(r) if f.raw_id() == want && r.name == cmd.name && r.index == cmd.index => {
+                    Some(r.result)
+                }
+                _ => None,
+            },
+        )?;
+        result.map_err(|code| MasterError::Interpreter {
+            joint: self.axes[a].cfg.name.clone(),
+            node: node.get(),
+            command: command_text(&cmd),
+            code,
+        })
+    }
+
+    /// Sets up the drive's table for tabulated motion (PVT, PT): rows `1..=N` as a ring
+    /// (`MP[1..3]`), the PT period in position-loop samples (`MP[4]`, from the drive's `TS`),
+    /// and the write pointer at row 1 (`MP[6]`), so the master's count of rows matches the
+    /// drive's.
+    fn setup_table(&mut self, a: usize) -> Result<(), MasterError> {
+        let rows = self.cfg.motion.table_rows();
+        let mut mp = vec![(1, 1), (2, rows as i32), (3, 1)];
+        match self.cfg.motion {
+            Motion::InterpolatedPosition { .. } => return Ok(()),
+            Motion::Pvt => {}
+            Motion::Pt { period_ms } => {
+                let ts = match self.interpret(a, Interp::get(b"TS", 0))? {
+                    Value::Int(t) => t as i64,
+                    Value::Float(t) => t as i64,
+                };
+                let (sample_us, period_us) = (4 * ts, period_ms as i64 * 1000);
+                if ts <= 0 || period_us % sample_us != 0 || period_us / sample_us > 65535 {
+                    return Err(MasterError::Setup {
+                        joint: self.axes[a].cfg.name.clone(),
+                        node: self.axes[a].node.get(),
+                        what: format!(
+                            "a PT period of {period_ms} ms is not a whole number of the drive's \
+                             position-loop samples ({sample_us} µs, TS = {ts})"
+                        ),
+                    });
+                }
+                mp.push((4, (period_us / sample_us) as i32));
+            }
+        }
+        mp.push((6, 1));
+        for (i, v) in mp {
+            self.interpret(a, Interp::set(b"MP", i, Value::Int(v)))?;
+        }
+        self.axes[a].queue = PvtQueue::new(rows);
+        Ok(())
     }
 
     fn sdo_error(&self, a: usize, error: sdo::SdoError) -> MasterError {
@@ -461,9 +633,27 @@ impl<B: CanBus> Master<B> {
                 }
             }
             self.send(&nmt::encode(nmt::Command::Start, node.get()))?;
+            self.setup_table(a)?;
             self.enable(a)?;
+            self.axes[a].up = true;
         }
         Ok(())
+    }
+
+    /// Forgets every row not yet played and what the drives were doing, then brings every
+    /// drive up again (after a bus-off, a drive reset or a fault): a motion cut off is not
+    /// resumed.
+    pub fn recover(&mut self) -> Result<(), MasterError> {
+        for ax in &mut self.axes {
+            ax.rows_pending.clear();
+            ax.queue = PvtQueue::new(self.cfg.motion.table_rows());
+            ax.started = false;
+            ax.last_row = None;
+            ax.heartbeat_lost = false;
+            ax.last_heartbeat = None;
+            ax.up = false;
+        }
+        self.bring_up()
     }
 
     fn enable(&mut self, a: usize) -> Result<(), MasterError> {
@@ -572,6 +762,32 @@ impl<B: CanBus> Master<B> {
         Ok(cols)
     }
 
+    /// Positions of column `c` (rad) every `period` s from the first row: cubic Hermite
+    /// between rows (with their velocities); the last sample is the last row, so a move ends
+    /// exactly where it should.
+    fn pt_points(&self, t: &Trajectory, c: usize, period: f64) -> Vec<f64> {
+        let (t0, t_end) = (t.times[0], t.times[t.times.len() - 1]);
+        let n = ((t_end - t0) / period - 1e-9).ceil().max(1.0) as usize;
+        let mut r = 0;
+        (0..=n)
+            .map(|i| {
+                let time = (t0 + i as f64 * period).min(t_end);
+                while r + 2 < t.times.len() && t.times[r + 1] <= time {
+                    r += 1;
+                }
+                let h = t.times[r + 1] - t.times[r];
+                let s = ((time - t.times[r]) / h).clamp(0.0, 1.0);
+                let (p0, p1) = (t.positions[r][c], t.positions[r + 1][c]);
+                let (m0, m1) = (self.velocity(t, r, c) * h, self.velocity(t, r + 1, c) * h);
+                let (s2, s3) = (s * s, s * s * s);
+                (2.0 * s3 - 3.0 * s2 + 1.0) * p0
+                    + (s3 - 2.0 * s2 + s) * m0
+                    + (-2.0 * s3 + 3.0 * s2) * p1
+                    + (s3 - s2) * m1
+            })
+            .collect()
+    }
+
     fn velocity(&self, t: &Trajectory, r: usize, c: usize) -> f64 {
         if let Some(v) = t.velocities.get(r) {
             return v[c];
@@ -583,10 +799,40 @@ impl<B: CanBus> Master<B> {
         (t.positions[r + 1][c] - t.positions[r - 1][c]) / (t.times[r + 1] - t.times[r - 1])
     }
 
-    /// Validates a trajectory and queues it as PVT rows for each joint; rows go out as the
-    /// drives' tables have room (see [`Master::pump`]).
+    /// Validates a trajectory and queues it for each joint (PVT rows, PT points resampled at
+    /// the period, or set-points); rows go out as the drives' tables have room (see
+    /// [`Master::pump`]).
     pub fn load(&mut self, t: &Trajectory) -> Result<(), MasterError> {
         let cols = self.validate(t)?;
+        if let Motion::Pt { period_ms } = self.cfg.motion {
+            for (c, &a) in cols.iter().enumerate() {
+                let k = self.axes[a].cfg.counts_per_rad();
+                let last = t.times.len() - 1;
+                let v_end = self.velocity(t, last, c) * k;
+                let mut points = self.pt_points(t, c, period_ms as f64 / 1000.0);
+                for p in &mut points {
+                    *p *= k;
+                }
+                let row = |p: f64| PvtRow {
+                    position: p.round() as i32,
+                    velocity: 0,
+                    time_ms: period_ms,
+                };
+                let mut rows: Vec<PvtRow> = points.into_iter().map(row).collect();
+                // At rest, the last point is held (and repeated to fill the last frame); in
+                // motion, an odd point waits for the next chunk to share its frame.
+                let end = rows[rows.len() - 1];
+                if v_end.round() == 0.0 && (self.axes[a].rows_pending.len() + rows.len()) % 2 == 1 {
+                    rows.push(end);
+                }
+                self.axes[a].last_row = Some(PvtRow {
+                    velocity: v_end.round() as i32,
+                    ..end
+                });
+                self.axes[a].rows_pending.extend(rows);
+            }
+            return Ok(());
+        }
         for (c, &a) in cols.iter().enumerate() {
             let k = self.axes[a].cfg.counts_per_rad();
             let mut rows = Vec::with_capacity(t.times.len());
@@ -621,10 +867,13 @@ impl<B: CanBus> Master<B> {
     pub fn pump(&mut self, now: Instant) -> Result<(), MasterError> {
         // Rows go out round-robin, one per axis per pass, so that no axis starves while the
         // controller's queue is the bottleneck.
+        let per_frame = self.cfg.motion.rows_per_frame();
         'fill: loop {
             let mut sent_any = false;
             for a in 0..self.axes.len() {
-                if self.axes[a].rows_pending.is_empty() || self.axes[a].queue.room() == 0 {
+                if self.axes[a].rows_pending.len() < per_frame
+                    || self.axes[a].queue.room() < per_frame as u64
+                {
                     continue;
                 }
                 let cob = setpoint_rpdo(self.cfg.motion).cob_id(self.axes[a].node);
@@ -634,12 +883,18 @@ impl<B: CanBus> Master<B> {
                     Motion::InterpolatedPosition { .. } => {
                         CanFrame::standard(cob, &row.position.to_le_bytes())
                     }
+                    Motion::Pt { .. } => CanFrame::standard(
+                        cob,
+                        &pt_bytes(row.position, self.axes[a].rows_pending[1].position),
+                    ),
                 }
                 .expect("valid frame");
                 match self.bus.send(&f, now + self.cfg.sdo_timeout) {
                     Ok(()) => {
-                        self.axes[a].rows_pending.pop_front();
-                        self.axes[a].queue.push();
+                        for _ in 0..per_frame {
+                            self.axes[a].rows_pending.pop_front();
+                            self.axes[a].queue.push();
+                        }
                         sent_any = true;
                     }
                     // The controller's queue is full: the rest waits for the next cycle.
@@ -654,8 +909,10 @@ impl<B: CanBus> Master<B> {
         // Every axis starts together, once all have their rows loaded (or their tables full);
         // an axis that joins a motion under way starts as soon as it is loaded.
         let moving = self.axes.iter().any(|a| a.started);
-        let loaded =
-            |a: &Axis| a.queue.pending() >= 2 && (a.rows_pending.is_empty() || a.queue.room() == 0);
+        let loaded = |a: &Axis| {
+            a.queue.pending() >= 2
+                && (a.rows_pending.len() < per_frame || a.queue.room() < per_frame as u64)
+        };
         let waiting: Vec<usize> = (0..self.axes.len())
             .filter(|&a| !self.axes[a].started && self.axes[a].queue.pending() > 0)
             .collect();
@@ -664,18 +921,32 @@ impl<B: CanBus> Master<B> {
                 if !loaded(&self.axes[a]) {
                     continue;
                 }
+                let node = self.axes[a].node;
+                let tabulated = |name: &[u8; 2]| {
+                    // The read pointer at the motion's first row, then begin.
+                    let first = self.axes[a].queue.read_index() as i32;
+                    [
+                        Interp::set(name, 0, Value::Int(first)),
+                        Interp::set(b"BG", 0, Value::Int(0)),
+                    ]
+                    .map(|c| c.encode(node).expect("valid command"))
+                    .to_vec()
+                };
                 let start = match self.cfg.motion {
-                    Motion::Pvt => Interp::set(b"BG", 0, Value::Int(0))
-                        .encode(self.axes[a].node)
-                        .expect("valid command"),
+                    Motion::Pvt => tabulated(b"PV"),
+                    Motion::Pt { .. } => tabulated(b"PT"),
                     // RPDO1 carries the controlword: enable operation + enable interpolation.
-                    Motion::InterpolatedPosition { .. } => CanFrame::standard(
-                        CobId::of(Function::Rpdo(1), self.axes[a].node).raw(),
+                    Motion::InterpolatedPosition { .. } => vec![CanFrame::standard(
+                        CobId::of(Function::Rpdo(1), node).raw(),
                         &0x001fu16.to_le_bytes(),
                     )
-                    .expect("valid frame"),
+                    .expect("valid frame")],
                 };
-                match self.bus.send(&start, now + self.cfg.sdo_timeout) {
+                // Should the controller's queue fill between the two, both go again next cycle.
+                match start
+                    .iter()
+                    .try_for_each(|f| self.bus.send(f, now + self.cfg.sdo_timeout))
+                {
                     Ok(()) => self.axes[a].started = true,
                     Err(BusError::TxQueueFull) => break,
                     Err(e) => return Err(e.into()),
@@ -741,10 +1012,31 @@ impl<B: CanBus> Master<B> {
                     }
                 }
             }
+            Function::Tpdo(2) => {
+                if let Ok(Reply {
+                    name,
+                    index,
+                    result: Err(code),
+                }) = Reply::decode(f.data())
+                {
+                    let command = command_text(&Interp::get(&name, index));
+                    self.events.push(Event::InterpreterError {
+                        joint: self.axes[a].cfg.name.clone(),
+                        command,
+                        code,
+                    });
+                }
+            }
             Function::Heartbeat => {
                 let ax = &mut self.axes[a];
                 ax.last_heartbeat = Some(now);
                 ax.heartbeat_lost = false;
+                if ax.up && f.data().first() == Some(&0) {
+                    ax.up = false;
+                    self.events.push(Event::Rebooted {
+                        joint: ax.cfg.name.clone(),
+                    });
+                }
             }
             Function::Emcy => {
                 if let Ok(e) = Emcy::decode(f) {
@@ -754,17 +1046,10 @@ impl<B: CanBus> Master<B> {
                     if let Some(ElmoEmcy::MotionTerminated { reason: 3, .. }) =
                         ElmoEmcy::from_emcy(&e)
                     {
-                        // Underflow: every row written has been played.
+                        // Underflow: every row written has been played; the next motion
+                        // starts at the write pointer.
                         let ax = &mut self.axes[a];
-                        while ax.queue.pending() > 0 {
-                            let done = ax.queue.pending();
-                            ax.queue
-                                .on_read_pointer(((ax.queue.pending() as u16) % PVT_ROWS) + 1);
-                            if ax.queue.pending() == done {
-                                ax.queue = PvtQueue::new(PVT_ROWS);
-                                break;
-                            }
-                        }
+                        ax.queue.drain();
                         ax.started = false;
                         if let Motion::InterpolatedPosition { .. } = self.cfg.motion {
                             // Bit 4 must fall before the next start (a rising edge starts).
@@ -857,28 +1142,82 @@ mod tests {
         }
     }
 
-    fn sine(joints: usize, rows: usize) -> Trajectory {
+    /// One period of a shape over `rows` rows 10 ms apart: joint `j` moves by
+    /// `amplitude · (j + 1) / joints · p(ω, t)` at velocity `amplitude · (j + 1) / joints · v(ω, t)`.
+    fn periodic(
+        joints: usize,
+        amplitude: f64,
+        rows: usize,
+        p: fn(f64, f64) -> f64,
+        v: fn(f64, f64) -> f64,
+    ) -> Trajectory {
         let dt = 0.01;
         let w = std::f64::consts::TAU / (dt * (rows - 1) as f64);
+        let table = |f: fn(f64, f64) -> f64| -> Vec<Vec<f64>> {
+            (0..rows)
+                .map(|r| {
+                    (0..joints)
+                        .map(|j| amplitude * (j + 1) as f64 / joints as f64 * f(w, r as f64 * dt))
+                        .collect()
+                })
+                .collect()
+        };
         Trajectory {
             joints: (1..=joints).map(|i| format!("j{i}")).collect(),
             times: (0..rows).map(|r| r as f64 * dt).collect(),
-            positions: (0..rows)
-                .map(|r| {
-                    (0..joints)
-                        .map(|j| 0.3 * (j + 1) as f64 / joints as f64 * (w * r as f64 * dt).sin())
-                        .collect()
-                })
-                .collect(),
-            velocities: (0..rows)
-                .map(|r| {
-                    (0..joints)
-                        .map(|j| {
-                            0.3 * (j + 1) as f64 / joints as f64 * w * (w * r as f64 * dt).cos()
-                        })
-                        .collect()
-                })
-                .collect(),
+            positions: table(p),
+            velocities: table(v),
+        }
+    }
+
+    /// A sine period of 0.3 rad (scaled per joint): it ends in motion.
+    fn sine(joints: usize, rows: usize) -> Trajectory {
+        periodic(
+            joints,
+            0.3,
+            rows,
+            |w, t| (w * t).sin(),
+            |w, t| w * (w * t).cos(),
+        )
+    }
+
+    /// A move out and back of `amplitude` rad (a cosine bump), at rest at both ends.
+    fn bump(joints: usize, amplitude: f64, rows: usize) -> Trajectory {
+        periodic(
+            joints,
+            amplitude,
+            rows,
+            |w, t| (1.0 - (w * t).cos()) / 2.0,
+            |w, t| w * (w * t).sin() / 2.0,
+        )
+    }
+
+    type Rig = (
+        MemBus,
+        Arc<AtomicBool>,
+        Vec<std::thread::JoinHandle<FakeElmo>>,
+        Master<stride_canbus::MemNode>,
+    );
+
+    /// `n` fake drives and a master in `motion` mode, brought up.
+    fn rig(n: u8, motion: Motion) -> Rig {
+        let bus = MemBus::new(1_000_000);
+        let stop = Arc::new(AtomicBool::new(false));
+        let drives = spawn_drives(&bus, &vec![Levers::default(); n as usize], &stop);
+        let cfg = MasterConfig {
+            motion,
+            ..Default::default()
+        };
+        let mut m = Master::new(bus.node(), (1..=n).map(joint).collect(), cfg).unwrap();
+        m.bring_up().unwrap();
+        (bus, stop, drives, m)
+    }
+
+    /// Stops the fake drives and waits for them.
+    fn finish(stop: &AtomicBool, drives: Vec<std::thread::JoinHandle<FakeElmo>>) {
+        stop.store(true, Ordering::Relaxed);
+        for d in drives {
+            d.join().unwrap();
         }
     }
 
@@ -928,10 +1267,7 @@ mod tests {
             .count();
         assert_eq!(underflows, 6, "each drive ends its trajectory once");
         m.disable().unwrap();
-        stop.store(true, Ordering::Relaxed);
-        for d in drives {
-            d.join().unwrap();
-        }
+        finish(&stop, drives);
     }
 
     #[test]
@@ -1022,23 +1358,42 @@ mod tests {
             m.pump(Instant::now()),
             Err(MasterError::Bus(BusError::BusOff))
         );
-        stop.store(true, Ordering::Relaxed);
-        for d in drives {
-            d.join().unwrap();
+        assert!(m.recover().is_err());
+        // The bus comes back (and the silent drive with it): recovery brings both drives up
+        // again, the faulted one through a fault reset, and they move.
+        bus.set_bus_off(false);
+        levers[1].silent.store(false, Ordering::Relaxed);
+        m.recover().unwrap();
+        let t = bump(2, 0.2, 60);
+        m.load(&t).unwrap();
+        play(&mut m);
+        for (name, s) in m.states() {
+            assert_eq!(
+                DriveState::from_statusword(s.statusword),
+                DriveState::OperationEnabled,
+                "{name}"
+            );
+            assert!(s.position.abs() < 1e-3, "{name}: {}", s.position);
         }
+        // A drive that resets (here by NMT, as a power cycle would) is reported once.
+        m.take_events();
+        bus.node()
+            .send(&nmt::encode(nmt::Command::ResetNode, 2), Instant::now())
+            .unwrap();
+        run(&mut m, 100);
+        let rebooted: Vec<Event> = m
+            .take_events()
+            .into_iter()
+            .filter(|e| matches!(e, Event::Rebooted { .. }))
+            .collect();
+        assert_eq!(rebooted, [Event::Rebooted { joint: "j2".into() }]);
+        m.recover().unwrap();
+        finish(&stop, drives);
     }
 
     #[test]
     fn interpolated_position_mode_walks_the_same_trajectory() {
-        let bus = MemBus::new(1_000_000);
-        let stop = Arc::new(AtomicBool::new(false));
-        let drives = spawn_drives(&bus, &vec![Levers::default(); 3], &stop);
-        let cfg = MasterConfig {
-            motion: Motion::InterpolatedPosition { period_ms: 10 },
-            ..Default::default()
-        };
-        let mut m = Master::new(bus.node(), (1..=3).map(joint).collect(), cfg).unwrap();
-        m.bring_up().unwrap();
+        let (_bus, stop, drives, mut m) = rig(3, Motion::InterpolatedPosition { period_ms: 10 });
         let t = sine(3, 150);
         m.load(&t).unwrap();
         play(&mut m);
@@ -1057,9 +1412,63 @@ mod tests {
             m.validate(&uneven),
             Err(MasterError::BadTrajectory(_))
         ));
-        stop.store(true, Ordering::Relaxed);
-        for d in drives {
-            d.join().unwrap();
+        finish(&stop, drives);
+    }
+
+    #[test]
+    fn pt_mode_walks_a_move_resampled_at_its_period() {
+        let (_bus, stop, drives, mut m) = rig(6, Motion::Pt { period_ms: 8 });
+        // 3 s out and back at 10 ms rows, played as 8 ms PT points (376 of them, more than
+        // the 256-point rings hold): resampled, refilled, ended at rest.
+        let t = bump(6, 0.4, 301);
+        m.load(&t).unwrap();
+        let mut peak = [0f64; 6];
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !m.idle() && Instant::now() < deadline {
+            m.pump(Instant::now()).unwrap();
+            for (i, (_, s)) in m.states().into_iter().enumerate() {
+                peak[i] = peak[i].max(s.position);
+            }
+            std::thread::sleep(Duration::from_millis(5));
         }
+        play(&mut m);
+        for (i, (name, s)) in m.states().into_iter().enumerate() {
+            let top = 0.4 * (i + 1) as f64 / 6.0;
+            assert!(s.position.abs() < 1e-3, "{name} ends at {}", s.position);
+            assert!(
+                (peak[i] - top).abs() < 0.02 * top,
+                "{name} peaked at {}",
+                peak[i]
+            );
+        }
+        let refused: Vec<Event> = m
+            .take_events()
+            .into_iter()
+            .filter(|e| matches!(e, Event::InterpreterError { .. }))
+            .collect();
+        assert!(refused.is_empty(), "{refused:?}");
+        m.disable().unwrap();
+        finish(&stop, drives);
+    }
+
+    #[test]
+    fn a_pt_period_off_the_drive_sample_grid_is_refused_at_bring_up() {
+        let bus = MemBus::new(1_000_000);
+        let stop = Arc::new(AtomicBool::new(false));
+        let mut drive = ElmoConfig::new(1);
+        drive.ts_us = 75; // position loop every 300 µs: 10 ms is not a whole number of them
+        let h = FakeElmo::new(drive, Levers::default()).spawn(bus.node(), stop.clone());
+        let cfg = MasterConfig {
+            motion: Motion::Pt { period_ms: 10 },
+            ..Default::default()
+        };
+        let mut m = Master::new(bus.node(), vec![joint(1)], cfg).unwrap();
+        let e = m.bring_up().unwrap_err();
+        assert!(
+            matches!(&e, MasterError::Setup { node: 1, what, .. } if what.contains("300 µs")),
+            "{e}"
+        );
+        stop.store(true, Ordering::Relaxed);
+        h.join().unwrap();
     }
 }

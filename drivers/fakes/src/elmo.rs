@@ -1,7 +1,16 @@
 //! A fake Elmo CANopen drive: NMT with heartbeat, an object dictionary behind an SDO server,
-//! PDO mapping, the CiA 402 state machine, the binary interpreter on PDO2, a 64-row PVT table
-//! fed through object 0x2001 and played with cubic interpolation, a motor that follows with a
-//! lag, following-error faults and emergencies (queue low, underflow, faults).
+//! PDO mapping, the CiA 402 state machine, the binary interpreter on PDO2, tabulated motion
+//! (a 64-row PVT table fed through object 0x2001, a PT table of up to 1024 points fed two at a
+//! time through 0x2002, both set up with `MP[1..6]`, `PV=n`/`PT=n` and `BG`, played with cubic
+//! interpolation), CiA 402 interpolated position, a motor that follows with a lag,
+//! following-error faults and emergencies (queue low, underflow, faults).
+//!
+//! Tabulated motion as the SimplIQ manuals describe it: `MP[1]`/`MP[2]` bound the rows in use
+//! (a ring when `MP[3]` bit 0 is set), `MP[3]` bit 1 says running out of rows is the expected
+//! end (no emergency), `MP[4]` is the PT period in position-controller samples (4 × `TS` µs),
+//! `MP[6]` is the write pointer of the fast-reference objects, and `PV=n`/`PT=n` set the read
+//! pointer and arm the next `BG`. PT segments are cubic, with each point's slope taken from its
+//! neighbours (zero at the first point of a motion and where no next point has arrived).
 //!
 //! It only talks through its [`CanBus`]; the test harness may also pull "physical" levers
 //! ([`Levers`]: inject a fault, go silent) the way one would on a bench.
@@ -14,7 +23,7 @@ use std::time::{Duration, Instant};
 
 use stride_canbus::{BusError, CanBus, CanFrame};
 use stride_canopen::ds402::{self, State as DriveState};
-use stride_canopen::elmo::{Command as Interp, PvtRow, Reply, Value};
+use stride_canopen::elmo::{Command as Interp, PvtRow, Reply, Value, PT_OBJECT, PVT_OBJECT};
 use stride_canopen::emcy::{ElmoEmcy, Emcy};
 use stride_canopen::frame::{CobId, Function, NodeId};
 use stride_canopen::nmt::{self, State as NmtState};
@@ -30,8 +39,12 @@ pub struct ElmoConfig {
     pub lag: Duration,
     /// Initial following error window (0x6065), counts.
     pub following_error_window: u32,
-    /// Rows in the PVT table.
+    /// Rows in the PVT table (`QV`/`QT`).
     pub pvt_rows: u16,
+    /// Points in the PT table (`QP`).
+    pub pt_points: u16,
+    /// Current-loop sampling time `TS`, µs (the position loop runs every 4 × TS).
+    pub ts_us: u32,
 }
 
 impl ElmoConfig {
@@ -42,6 +55,8 @@ impl ElmoConfig {
             lag: Duration::from_millis(3),
             following_error_window: 20_000,
             pvt_rows: 64,
+            pt_points: 1024,
+            ts_us: 50,
         }
     }
 }
@@ -68,6 +83,8 @@ struct Entry {
 }
 
 struct SegmentedUpload {
+    index: u16,
+    sub: u8,
     data: Vec<u8>,
     toggle: bool,
 }
@@ -89,8 +106,15 @@ pub struct FakeElmo {
     prev_cw: u16,
     upload: Option<SegmentedUpload>,
     download: Option<SegmentedDownload>,
-    // PVT table and motion.
+    // Tabulated motion: the table (PVT rows, PT points, IP set-points), MP[1..=6], what the
+    // next BG starts and what is playing.
     table: Vec<PvtRow>,
+    mp: [i32; 7],
+    armed: Option<Table>,
+    playing: Table,
+    /// Rows counted when the playing motion started (PT: the first point has zero slope).
+    motion_start: u64,
+    ts_us: u32,
     written: u64,
     executed: u64,
     queue_low_sent: bool,
@@ -109,12 +133,27 @@ pub struct FakeElmo {
     qs_velocity: f64,
 }
 
+/// The kinds of tabulated motion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Table {
+    /// Elmo PVT (0x2001 rows, `PV=n`).
+    Pvt,
+    /// Elmo PT (0x2002 points, `PT=n`).
+    Pt,
+    /// CiA 402 interpolated position (0x60C1 set-points, controlword bit 4), linear.
+    Ip,
+}
+
+/// The segment being played: a cubic from (p0, v0) to (p1, v1), or a line.
 #[derive(Debug, Clone, Copy)]
 struct Segment {
-    from: PvtRow,
-    to: PvtRow,
+    p0: f64,
+    v0: f64,
+    p1: f64,
+    v1: f64,
+    /// Seconds the segment lasts.
+    duration: f64,
     elapsed: f64,
-    /// DS402 linear interpolation (mode 7, sub-mode 0) instead of PVT's cubic.
     linear: bool,
 }
 
@@ -139,8 +178,13 @@ impl FakeElmo {
                     velocity: 0,
                     time_ms: 1
                 };
-                cfg.pvt_rows as usize
+                cfg.pvt_rows.max(cfg.pt_points).max(1) as usize
             ],
+            mp: [0, 1, cfg.pvt_rows as i32, 0, 1, 0, 1],
+            armed: None,
+            playing: Table::Pvt,
+            motion_start: 0,
+            ts_us: cfg.ts_us,
             written: 0,
             executed: 0,
             queue_low_sent: false,
@@ -220,7 +264,8 @@ impl FakeElmo {
         put(ds402::IP_PERIOD, 1, Rw, vec![10]);
         put(ds402::IP_PERIOD, 2, Rw, vec![(-3i8) as u8]);
         put(ds402::IP_DATA, 1, Rw, le(0, 4));
-        put(stride_canopen::elmo::PVT_OBJECT, 0, Wo, le(0, 8));
+        put(PVT_OBJECT, 0, Wo, le(0, 8));
+        put(PT_OBJECT, 0, Wo, le(0, 8));
         put(0x2f11, 0, Ro, le(1, 2));
         put(0x2f12, 0, Ro, le(1, 2));
         self.od = od;
@@ -322,8 +367,7 @@ impl FakeElmo {
         }
         if id == CobId::of(Function::SdoRx, node).raw() {
             if let Ok((_, req)) = ClientRequest::decode(f) {
-                let resp = self.on_sdo(req);
-                if let Ok(frame) = resp.encode(node) {
+                if let Some(Ok(frame)) = self.on_sdo(req).map(|r| r.encode(node)) {
                     self.send(bus, frame);
                 }
             }
@@ -351,6 +395,11 @@ impl FakeElmo {
                 self.reset_od();
                 self.booted = false;
                 self.motion = None;
+                self.mp = [0, 1, self.cfg.pvt_rows as i32, 0, 1, 0, 1];
+                self.written = 0;
+                self.executed = 0;
+                self.armed = None;
+                self.ts_us = self.cfg.ts_us;
                 self.motor_on = false;
                 self.drive = DriveState::NotReadyToSwitchOn;
             }
@@ -421,14 +470,12 @@ impl FakeElmo {
             );
             return;
         };
-        // A PVT row mapped as one 64-bit object.
+        // A PVT row or two PT points, mapped as one 64-bit object.
         if cfg.entries.len() == 1
-            && cfg.entries[0].index == stride_canopen::elmo::PVT_OBJECT
+            && [PVT_OBJECT, PT_OBJECT].contains(&cfg.entries[0].index)
             && data.len() == 8
         {
-            let mut b = [0u8; 8];
-            b.copy_from_slice(data);
-            self.push_row(PvtRow::from_bytes(&b), bus);
+            self.write_object(cfg.entries[0].index, 0, data, bus);
             return;
         }
         for (e, v) in cfg.entries.iter().zip(values) {
@@ -441,22 +488,75 @@ impl FakeElmo {
         }
     }
 
+    /// Rows of the table in use: `MP[1]..=MP[2]`.
+    fn ring(&self) -> u64 {
+        (self.mp[2] as i64 - self.mp[1] as i64 + 1).clamp(1, self.table.len() as i64) as u64
+    }
+
+    /// The 1-based table index of the `count`-th row written.
+    fn index_of(&self, count: u64) -> u16 {
+        (self.mp[1].max(1) as u64 + count % self.ring()) as u16
+    }
+
+    fn row_at(&self, count: u64) -> PvtRow {
+        self.table[(count % self.ring()) as usize]
+    }
+
     fn push_row(&mut self, row: PvtRow, bus: &mut impl CanBus) {
-        let rows = self.cfg.pvt_rows as u64;
-        if self.written - self.executed >= rows {
+        if self.written - self.executed >= self.ring() {
             let e = ElmoEmcy::QueueFull {
-                index: (self.written % rows) as u16 + 1,
+                index: self.index_of(self.written),
             }
             .to_emcy(self.cfg.node);
             self.emcy(bus, e);
             return;
         }
-        self.table[(self.written % rows) as usize] = row;
+        let slot = (self.written % self.ring()) as usize;
+        self.table[slot] = row;
         self.written += 1;
-        self.set_raw(0x2f11, 0, (self.written % rows) as i64 + 1);
+        self.update_pointers();
         if self.written - self.executed > 2 {
             self.queue_low_sent = false;
         }
+    }
+
+    /// Publishes the write and read pointers (0x2F11, 0x2F12; `MP[6]` is the write pointer).
+    fn update_pointers(&mut self) {
+        let (w, r) = (self.index_of(self.written), self.index_of(self.executed));
+        self.set_raw(0x2f11, 0, w as i64);
+        self.set_raw(0x2f12, 0, r as i64);
+        self.mp[6] = w as i32;
+    }
+
+    /// `MP[6]=n`: the next row written lands at table index `n`; the table is emptied.
+    fn set_write_pointer(&mut self, n: i32) -> Result<(), u32> {
+        if !(self.mp[1]..=self.mp[2]).contains(&n) {
+            return Err(ERR_OUT_OF_RANGE);
+        }
+        let ring = self.ring();
+        let base = self.written + ring - self.written % ring;
+        self.written = base + (n - self.mp[1]) as u64;
+        self.executed = self.written;
+        self.update_pointers();
+        Ok(())
+    }
+
+    /// `PV=n` / `PT=n`: the read pointer moves to table index `n` (rows between it and the
+    /// write pointer are what the next `BG` plays).
+    fn set_read_pointer(&mut self, n: i32) -> Result<(), u32> {
+        if !(self.mp[1]..=self.mp[2]).contains(&n) {
+            return Err(ERR_OUT_OF_RANGE);
+        }
+        let ring = self.ring();
+        let ws = self.written % ring;
+        let target = (n - self.mp[1]) as u64;
+        let mut back = (ws + ring - target) % ring;
+        if back == 0 && self.written - self.executed == ring {
+            back = ring;
+        }
+        self.executed = self.written.checked_sub(back).ok_or(ERR_OUT_OF_RANGE)?;
+        self.update_pointers();
+        Ok(())
     }
 
     /// Writes an object from the bus (SDO or RPDO); the side effects of the drive happen here.
@@ -508,17 +608,28 @@ impl FakeElmo {
                 let ip_mode = self.get_u(ds402::MODES_OF_OPERATION, 0) as i8 == 7;
                 let enabled = self.drive == DriveState::OperationEnabled;
                 if ip_mode && enabled && cw & 0x10 != 0 && self.prev_ip_bit_clear() {
-                    self.begin_motion(Instant::now());
+                    self.begin_motion(Table::Ip, Instant::now());
                 }
                 self.ip_bit = cw & 0x10 != 0;
             }
             (ds402::MODES_OF_OPERATION, 0) => {
                 self.set_raw(ds402::MODES_DISPLAY, 0, data[0] as i8 as i64)
             }
-            (stride_canopen::elmo::PVT_OBJECT, 0) => {
+            (PVT_OBJECT, 0) => {
                 let mut b = [0u8; 8];
                 b.copy_from_slice(data);
                 self.push_row(PvtRow::from_bytes(&b), bus);
+            }
+            (PT_OBJECT, 0) => {
+                for pair in data.chunks_exact(4) {
+                    let position = i32::from_le_bytes([pair[0], pair[1], pair[2], pair[3]]);
+                    let row = PvtRow {
+                        position,
+                        velocity: 0,
+                        time_ms: 0,
+                    };
+                    self.push_row(row, bus);
+                }
             }
             (ds402::IP_DATA, 1) => {
                 // A linear interpolation set-point: one row of the fixed period (0x60C2, ms).
@@ -554,24 +665,36 @@ impl FakeElmo {
         );
     }
 
-    fn on_sdo(&mut self, req: ClientRequest) -> ServerResponse {
+    /// Ends the segmented transfer in progress with an abort naming its object (index 0, sub 0
+    /// when none is in progress).
+    fn transfer_abort(&mut self, code: AbortCode) -> ServerResponse {
+        let (index, sub) = match (self.upload.take(), self.download.take()) {
+            (Some(up), _) => (up.index, up.sub),
+            (None, Some(dl)) => (dl.index, dl.sub),
+            (None, None) => (0, 0),
+        };
+        ServerResponse::Abort { index, sub, code }
+    }
+
+    /// Serves one SDO request; `None` when nothing is to be answered (a client's abort).
+    fn on_sdo(&mut self, req: ClientRequest) -> Option<ServerResponse> {
         // The bus is not needed for SDO side effects except PVT rows; they queue EMCYs later.
         let mut sink = NoBus;
-        match req {
+        Some(match req {
             ClientRequest::InitiateUpload { index, sub } => {
                 let Some(e) = self.od.get(&(index, sub)) else {
-                    return ServerResponse::Abort {
+                    return Some(ServerResponse::Abort {
                         index,
                         sub,
                         code: AbortCode::NO_OBJECT,
-                    };
+                    });
                 };
                 if e.access == Access::Wo {
-                    return ServerResponse::Abort {
+                    return Some(ServerResponse::Abort {
                         index,
                         sub,
                         code: AbortCode::WRITE_ONLY,
-                    };
+                    });
                 }
                 let v = e.value.clone();
                 if v.len() <= 4 && !v.is_empty() {
@@ -583,6 +706,8 @@ impl FakeElmo {
                 } else {
                     let size = v.len() as u32;
                     self.upload = Some(SegmentedUpload {
+                        index,
+                        sub,
                         data: v,
                         toggle: false,
                     });
@@ -595,11 +720,10 @@ impl FakeElmo {
             }
             ClientRequest::UploadSegment { toggle } => {
                 let Some(up) = self.upload.as_mut() else {
-                    return transfer_abort(AbortCode::BAD_COMMAND);
+                    return Some(self.transfer_abort(AbortCode::BAD_COMMAND));
                 };
                 if toggle != up.toggle {
-                    self.upload = None;
-                    return transfer_abort(AbortCode::TOGGLE);
+                    return Some(self.transfer_abort(AbortCode::TOGGLE));
                 }
                 up.toggle = !up.toggle;
                 let n = up.data.len().min(7);
@@ -633,32 +757,32 @@ impl FakeElmo {
             },
             ClientRequest::DownloadSegment { toggle, data, last } => {
                 let Some(dl) = self.download.as_mut() else {
-                    return transfer_abort(AbortCode::BAD_COMMAND);
+                    return Some(self.transfer_abort(AbortCode::BAD_COMMAND));
                 };
                 if toggle != dl.toggle {
-                    self.download = None;
-                    return transfer_abort(AbortCode::TOGGLE);
+                    return Some(self.transfer_abort(AbortCode::TOGGLE));
                 }
                 dl.toggle = !dl.toggle;
                 dl.data.extend_from_slice(&data);
                 if last {
                     let dl = self.download.take().expect("in progress");
                     if let Some(code) = self.write_object(dl.index, dl.sub, &dl.data, &mut sink) {
-                        return ServerResponse::Abort {
+                        return Some(ServerResponse::Abort {
                             index: dl.index,
                             sub: dl.sub,
                             code,
-                        };
+                        });
                     }
                 }
                 ServerResponse::DownloadSegmentAck { toggle }
             }
+            // The client gave up: the transfer ends, and CiA 301 has no answer to an abort.
             ClientRequest::Abort { .. } => {
                 self.upload = None;
                 self.download = None;
-                transfer_abort(AbortCode::GENERAL)
+                return None;
             }
-        }
+        })
     }
 
     fn on_interpreter(&mut self, data: &[u8], now: Instant, bus: &mut impl CanBus) {
@@ -692,18 +816,44 @@ impl FakeElmo {
                 Ok(Value::Int(self.motor_on as i32))
             }
             (b"PX", None) => Ok(Value::Int(self.actual.round() as i32)),
-            (b"MP", _) | (b"PV", _) => Ok(Value::Int(value(cmd.value))),
+            (b"TS", None) => Ok(Value::Int(self.ts_us as i32)),
+            (b"TS", Some(_)) if self.motor_on => Err(ERR_MOTOR_ON),
+            (b"TS", Some(v)) => match value(Some(v)) {
+                t @ 25..=1000 => {
+                    self.ts_us = t as u32;
+                    Ok(Value::Int(t))
+                }
+                _ => Err(ERR_OUT_OF_RANGE),
+            },
+            (b"MP", _) if !(1..=6).contains(&cmd.index) => Err(ERR_BAD_INDEX),
+            (b"MP", None) => Ok(Value::Int(self.mp[cmd.index as usize])),
+            (b"MP", Some(_)) if self.motion.is_some() => Err(ERR_MOVING),
+            (b"MP", Some(v)) => self.set_mp(cmd.index as usize, value(Some(v))),
+            (b"PV", None) | (b"PT", None) => Ok(Value::Int(self.index_of(self.executed) as i32)),
+            (b"PV", Some(_)) | (b"PT", Some(_)) if self.motion.is_some() => Err(ERR_MOVING),
+            (b"PV", Some(_)) if self.mp[2] > self.cfg.pvt_rows as i32 => Err(ERR_OUT_OF_RANGE),
+            (name @ (b"PV" | b"PT"), Some(v)) => {
+                let n = value(Some(v));
+                self.set_read_pointer(n).map(|()| {
+                    self.armed = Some(if name == b"PV" { Table::Pvt } else { Table::Pt });
+                    Value::Int(n)
+                })
+            }
             (b"BG", _) => {
                 if self.drive != DriveState::OperationEnabled {
-                    Err(21) // "motor must be on"
-                } else if self.written == self.executed {
-                    Err(7)
+                    Err(ERR_MOTOR_OFF)
+                } else if let Some(kind) = self.armed {
+                    if self.written - self.executed < 2 {
+                        Err(ERR_EMPTY)
+                    } else {
+                        self.begin_motion(kind, now);
+                        Ok(Value::Int(0))
+                    }
                 } else {
-                    self.begin_motion(now);
-                    Ok(Value::Int(0))
+                    Err(ERR_NO_MODE)
                 }
             }
-            _ => Err(2), // unknown command
+            _ => Err(ERR_UNKNOWN),
         };
         let reply = Reply {
             name: cmd.name,
@@ -722,22 +872,85 @@ impl FakeElmo {
         !self.ip_bit
     }
 
-    fn begin_motion(&mut self, now: Instant) {
-        let rows = self.cfg.pvt_rows as u64;
+    /// `MP[i]=v`, checked: the bounds must lie in the table, `MP[4]` is 1..=65535 samples.
+    fn set_mp(&mut self, i: usize, v: i32) -> Result<Value, u32> {
+        let max = self.table.len() as i32;
+        let ok = match i {
+            1 => (1..=self.mp[2]).contains(&v),
+            2 => (self.mp[1]..=max).contains(&v),
+            3 => (0..=3).contains(&v),
+            4 => (1..=65535).contains(&v),
+            5 => true,
+            _ => return self.set_write_pointer(v).map(|()| Value::Int(v)),
+        };
+        if !ok {
+            return Err(ERR_OUT_OF_RANGE);
+        }
+        self.mp[i] = v;
+        if i <= 2 {
+            // New bounds: the table restarts empty at MP[1].
+            self.written = 0;
+            self.executed = 0;
+            self.update_pointers();
+        }
+        Ok(Value::Int(v))
+    }
+
+    /// The PT period: `MP[4]` position-controller samples of 4 × `TS` µs.
+    fn pt_period(&self) -> f64 {
+        self.mp[4].max(1) as f64 * 4.0 * self.ts_us as f64 * 1e-6
+    }
+
+    /// The segment that starts at the `executed`-th row of the playing table.
+    fn segment(&self, elapsed: f64) -> Segment {
+        let (from, to) = (self.row_at(self.executed), self.row_at(self.executed + 1));
+        let (p0, p1) = (from.position as f64, to.position as f64);
+        match self.playing {
+            Table::Pvt | Table::Ip => Segment {
+                p0,
+                v0: from.velocity as f64,
+                p1,
+                v1: to.velocity as f64,
+                duration: from.time_ms.max(1) as f64 / 1000.0,
+                elapsed,
+                linear: self.playing == Table::Ip,
+            },
+            Table::Pt => {
+                // Slopes from the neighbours: zero at the motion's first point, and where the
+                // point after `to` has not arrived.
+                let t = self.pt_period();
+                let v0 = if self.executed > self.motion_start {
+                    (p1 - self.row_at(self.executed - 1).position as f64) / (2.0 * t)
+                } else {
+                    0.0
+                };
+                let v1 = if self.written - self.executed >= 3 {
+                    (self.row_at(self.executed + 2).position as f64 - p0) / (2.0 * t)
+                } else {
+                    0.0
+                };
+                Segment {
+                    p0,
+                    v0,
+                    p1,
+                    v1,
+                    duration: t,
+                    elapsed,
+                    linear: false,
+                }
+            }
+        }
+    }
+
+    fn begin_motion(&mut self, kind: Table, now: Instant) {
         if self.written - self.executed < 2 {
             return;
         }
-        let from = self.table[(self.executed % rows) as usize];
-        let to = self.table[((self.executed + 1) % rows) as usize];
-        self.commanded = from.position as f64;
-        let linear = self.get_u(ds402::MODES_OF_OPERATION, 0) as i8 == 7
-            && self.get_u(ds402::IP_SUBMODE, 0) as i16 == 0;
-        self.motion = Some(Segment {
-            from,
-            to,
-            elapsed: 0.0,
-            linear,
-        });
+        self.playing = kind;
+        self.motion_start = self.executed;
+        let seg = self.segment(0.0);
+        self.commanded = seg.p0;
+        self.motion = Some(seg);
         self.last_step = Some(now);
     }
 
@@ -751,42 +964,47 @@ impl FakeElmo {
         }
         if let Some(mut seg) = self.motion {
             seg.elapsed += dt;
-            let rows = self.cfg.pvt_rows as u64;
             loop {
-                let t = seg.from.time_ms as f64 / 1000.0;
-                if seg.elapsed < t {
+                if seg.elapsed < seg.duration {
                     break;
                 }
-                seg.elapsed -= t;
+                let elapsed = seg.elapsed - seg.duration;
                 self.executed += 1;
-                self.set_raw(0x2f12, 0, (self.executed % rows) as i64 + 1);
+                self.update_pointers();
                 let pending = self.written - self.executed;
-                if pending < 2 {
-                    // Underflow: the read pointer reached the write pointer.
-                    self.commanded = seg.to.position as f64;
+                // Without MP[3] bit 0 the table is not a ring: the motion ends at MP[2].
+                let table_end = self.playing != Table::Ip
+                    && self.mp[3] & 1 == 0
+                    && self.index_of(self.executed) as i32 == self.mp[2];
+                if pending < 2 || table_end {
+                    // The read pointer reached the write pointer (underflow) or the table's
+                    // end: the motion ends at the last point; unexpected ends are reported.
+                    self.commanded = seg.p1;
                     self.motion = None;
-                    let e = ElmoEmcy::MotionTerminated {
-                        write: (self.written % rows) as u16 + 1,
-                        reason: 3,
+                    let expected = self.playing != Table::Ip && self.mp[3] & 2 != 0;
+                    if !expected {
+                        let e = ElmoEmcy::MotionTerminated {
+                            write: self.index_of(self.written),
+                            reason: 3,
+                        }
+                        .to_emcy(self.cfg.node);
+                        self.emcy(bus, e);
                     }
-                    .to_emcy(self.cfg.node);
-                    self.emcy(bus, e);
                     break;
                 }
                 if pending <= 4 && !self.queue_low_sent {
                     self.queue_low_sent = true;
                     let e = ElmoEmcy::QueueLow {
-                        write: (self.written % rows) as u16 + 1,
-                        read: (self.executed % rows) as u16 + 1,
+                        write: self.index_of(self.written),
+                        read: self.index_of(self.executed),
                     }
                     .to_emcy(self.cfg.node);
                     self.emcy(bus, e);
                 }
-                seg.from = seg.to;
-                seg.to = self.table[((self.executed + 1) % rows) as usize];
+                seg = self.segment(elapsed);
             }
             if self.motion.is_some() {
-                self.commanded = hermite(&seg);
+                self.commanded = interpolate(&seg);
                 self.motion = Some(seg);
             }
         }
@@ -832,28 +1050,33 @@ impl FakeElmo {
     }
 }
 
-/// An abort of the segmented transfer in progress (or of none), as this fake reports it.
-fn transfer_abort(code: AbortCode) -> ServerResponse {
-    ServerResponse::Abort {
-        index: 0,
-        sub: 0,
-        code,
-    }
-}
+// Interpreter error codes of this fake (a real drive's `EC` list numbers them its own way).
+/// Unknown command.
+const ERR_UNKNOWN: u32 = 2;
+/// `BG` with no rows to play.
+const ERR_EMPTY: u32 = 7;
+/// `BG` while the motor is off.
+const ERR_MOTOR_OFF: u32 = 21;
+/// A value or table index out of range.
+const ERR_OUT_OF_RANGE: u32 = 22;
+/// `BG` with no tabulated motion armed (`PV=n` or `PT=n` first).
+const ERR_NO_MODE: u32 = 23;
+/// A motion parameter changed while a motion plays.
+const ERR_MOVING: u32 = 24;
+/// `TS` changed while the motor is on.
+const ERR_MOTOR_ON: u32 = 25;
+/// An array index outside the command's range.
+const ERR_BAD_INDEX: u32 = 26;
 
-/// Cubic Hermite interpolation between two PVT rows (velocities in counts/s), or linear
-/// interpolation in DS402 interpolated position mode.
-fn hermite(seg: &Segment) -> f64 {
-    let t_total = seg.from.time_ms as f64 / 1000.0;
-    let s = (seg.elapsed / t_total).clamp(0.0, 1.0);
-    let (p0, p1) = (seg.from.position as f64, seg.to.position as f64);
+/// The segment's position at its elapsed time: cubic Hermite (slopes in counts/s), or a line
+/// in CiA 402 interpolated position mode.
+fn interpolate(seg: &Segment) -> f64 {
+    let s = (seg.elapsed / seg.duration).clamp(0.0, 1.0);
+    let (p0, p1) = (seg.p0, seg.p1);
     if seg.linear {
         return p0 + (p1 - p0) * s;
     }
-    let (m0, m1) = (
-        seg.from.velocity as f64 * t_total,
-        seg.to.velocity as f64 * t_total,
-    );
+    let (m0, m1) = (seg.v0 * seg.duration, seg.v1 * seg.duration);
     let s2 = s * s;
     let s3 = s2 * s;
     (2.0 * s3 - 3.0 * s2 + 1.0) * p0
@@ -941,8 +1164,40 @@ mod tests {
                 let f = CanFrame::standard(cfg.cob_id(node), &row.bytes().unwrap()).unwrap();
                 self.bus.send(&f, Instant::now()).unwrap();
             }
+            assert_eq!(
+                self.interp(Interp::set(b"PV", 0, Value::Int(1))),
+                Ok(Value::Int(1))
+            );
             let bg = Interp::set(b"BG", 0, Value::Int(0)).encode(node).unwrap();
             self.bus.send(&bg, Instant::now()).unwrap();
+        }
+
+        /// One interpreter exchange over PDO2.
+        fn interp(&mut self, cmd: Interp) -> Result<Value, u32> {
+            self.bus
+                .send(&cmd.encode(self.node).unwrap(), Instant::now())
+                .unwrap();
+            let tpdo2 = CobId::of(Function::Tpdo(2), self.node).raw() as u32;
+            let f = self.recv_until(|f| f.raw_id() == tpdo2);
+            let reply = Reply::decode(f.data()).unwrap();
+            assert_eq!((reply.name, reply.index), (cmd.name, cmd.index));
+            reply.result
+        }
+
+        /// NMT start, then the controlword walk to operation enabled.
+        fn enable(&mut self) {
+            self.bus
+                .send(&nmt::encode(nmt::Command::Start, 0), Instant::now())
+                .unwrap();
+            for cw in [0x06u16, 0x07, 0x0f] {
+                self.sdo_write(0x6040, 0, cw.to_le_bytes().to_vec())
+                    .unwrap();
+            }
+        }
+
+        fn position(&mut self) -> i32 {
+            let p = self.sdo_read(0x6064, 0).unwrap();
+            i32::from_le_bytes([p[0], p[1], p[2], p[3]])
         }
 
         fn sdo_read(&mut self, index: u16, sub: u8) -> Result<Vec<u8>, AbortCode> {
@@ -1011,13 +1266,7 @@ mod tests {
     fn ds402_enable_pvt_motion_and_underflow() {
         let (mut host, stop, _, h) = start();
         // Operational, then shutdown / switch on / enable through the controlword.
-        host.bus
-            .send(&nmt::encode(nmt::Command::Start, 3), Instant::now())
-            .unwrap();
-        for cw in [0x06u16, 0x07, 0x0f] {
-            host.sdo_write(0x6040, 0, cw.to_le_bytes().to_vec())
-                .unwrap();
-        }
+        host.enable();
         let sw = host.sdo_read(0x6041, 0).unwrap();
         assert_eq!(
             DriveState::from_statusword(u16::from_le_bytes([sw[0], sw[1]])),
@@ -1048,13 +1297,7 @@ mod tests {
     #[test]
     fn a_fault_is_reported_and_reset() {
         let (mut host, stop, levers, h) = start();
-        host.bus
-            .send(&nmt::encode(nmt::Command::Start, 0), Instant::now())
-            .unwrap();
-        for cw in [0x06u16, 0x0f] {
-            host.sdo_write(0x6040, 0, cw.to_le_bytes().to_vec())
-                .unwrap();
-        }
+        host.enable();
         levers.fault.store(true, Ordering::Relaxed);
         let f = host.recv_until(|f| f.raw_id() == 0x083);
         let e = Emcy::decode(&f).unwrap();
@@ -1089,15 +1332,176 @@ mod tests {
     }
 
     #[test]
-    fn quick_stop_decelerates_then_holds() {
+    fn pt_table_plays_a_point_every_mp4_samples() {
+        let (mut host, stop, _, h) = start();
+        host.enable();
+        // RPDO4 carries PT data: two points per frame.
+        let cfg = pdo::PdoConfig {
+            direction: pdo::Direction::Receive,
+            number: 4,
+            transmission: 255,
+            entries: vec![pdo::MapEntry {
+                index: PT_OBJECT,
+                sub: 0,
+                bits: 64,
+            }],
+        };
+        for (i, s, v) in cfg.sdo_writes(host.node) {
+            host.sdo_write(i, s, v).unwrap();
+        }
+        // TS = 50 µs, so the position loop runs every 200 µs and MP[4] = 50 is 10 ms a point.
+        assert_eq!(host.interp(Interp::get(b"TS", 0)), Ok(Value::Int(50)));
+        for (i, v) in [(1, 1), (2, 256), (3, 3), (4, 50), (6, 1)] {
+            assert_eq!(
+                host.interp(Interp::set(b"MP", i, Value::Int(v))),
+                Ok(Value::Int(v))
+            );
+        }
+        // A ramp to 2000 counts in 20 segments, then the last point again (the end at rest).
+        let points: Vec<i32> = (0..=20).map(|k| k * 100).chain([2000]).collect();
+        for pair in points.chunks(2) {
+            let f = CanFrame::standard(
+                cfg.cob_id(host.node),
+                &stride_canopen::elmo::pt_bytes(pair[0], pair[1]),
+            )
+            .unwrap();
+            host.bus.send(&f, Instant::now()).unwrap();
+        }
+        assert_eq!(
+            host.interp(Interp::set(b"PT", 0, Value::Int(1))),
+            Ok(Value::Int(1))
+        );
+        let t0 = Instant::now();
+        assert_eq!(
+            host.interp(Interp::set(b"BG", 0, Value::Int(0))),
+            Ok(Value::Int(0))
+        );
+        let mut mid = None;
+        while host.position() < 1995 {
+            assert!(
+                t0.elapsed() < Duration::from_secs(3),
+                "the PT motion stalled"
+            );
+            if mid.is_none() && t0.elapsed() >= Duration::from_millis(60) {
+                mid = Some(host.position());
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        // 20 segments of 10 ms cannot end sooner than 200 ms; it passed through the middle.
+        assert!(
+            t0.elapsed() >= Duration::from_millis(195),
+            "{:?}",
+            t0.elapsed()
+        );
+        assert!(mid.is_some_and(|p| p > 0 && p < 2000), "{mid:?}");
+        // MP[3] bit 1: running out of points is the expected end, so no emergency came.
+        assert!(
+            host.bus
+                .try_recv()
+                .unwrap()
+                .is_none_or(|f| f.raw_id() != 0x083),
+            "unexpected emergency"
+        );
+        stop.store(true, Ordering::Relaxed);
+        h.join().unwrap();
+    }
+
+    #[test]
+    fn interpreter_refuses_what_a_drive_refuses() {
         let (mut host, stop, _, h) = start();
         host.bus
-            .send(&nmt::encode(nmt::Command::Start, 3), Instant::now())
+            .send(&nmt::encode(nmt::Command::Start, 0), Instant::now())
             .unwrap();
-        for cw in [0x06u16, 0x0f] {
+        let bg = Interp::set(b"BG", 0, Value::Int(0));
+        assert_eq!(host.interp(bg), Err(ERR_MOTOR_OFF));
+        for cw in [0x06u16, 0x07, 0x0f] {
             host.sdo_write(0x6040, 0, cw.to_le_bytes().to_vec())
                 .unwrap();
         }
+        assert_eq!(host.interp(bg), Err(ERR_NO_MODE));
+        assert_eq!(
+            host.interp(Interp::set(b"PV", 0, Value::Int(1))),
+            Ok(Value::Int(1))
+        );
+        assert_eq!(host.interp(bg), Err(ERR_EMPTY));
+        // PVT rows live in 64 rows; PV beyond the bounds, MP[7], TS with the motor on: refused.
+        assert_eq!(
+            host.interp(Interp::set(b"PV", 0, Value::Int(65))),
+            Err(ERR_OUT_OF_RANGE)
+        );
+        assert_eq!(host.interp(Interp::get(b"MP", 7)), Err(ERR_BAD_INDEX));
+        assert_eq!(
+            host.interp(Interp::set(b"TS", 0, Value::Int(100))),
+            Err(ERR_MOTOR_ON)
+        );
+        assert_eq!(host.interp(Interp::get(b"XQ", 0)), Err(ERR_UNKNOWN));
+        stop.store(true, Ordering::Relaxed);
+        h.join().unwrap();
+    }
+
+    #[test]
+    fn sdo_aborts_name_the_transfer_and_client_aborts_get_no_answer() {
+        let (mut host, stop, _, h) = start();
+        let sdo_tx = CobId::of(Function::SdoTx, host.node).raw() as u32;
+        let send = |host: &mut Host, req: ClientRequest| {
+            host.bus
+                .send(&req.encode(host.node).unwrap(), Instant::now())
+                .unwrap();
+        };
+        let start_upload = |host: &mut Host| {
+            send(
+                host,
+                ClientRequest::InitiateUpload {
+                    index: 0x1008,
+                    sub: 0,
+                },
+            );
+            host.recv_until(|f| f.raw_id() == sdo_tx);
+        };
+        // A segmented upload of 0x1008, then a segment request with the wrong toggle.
+        start_upload(&mut host);
+        send(&mut host, ClientRequest::UploadSegment { toggle: true });
+        let f = host.recv_until(|f| f.raw_id() == sdo_tx);
+        assert_eq!(
+            ServerResponse::decode(&f).unwrap().1,
+            ServerResponse::Abort {
+                index: 0x1008,
+                sub: 0,
+                code: AbortCode::TOGGLE
+            }
+        );
+        // A client's abort ends a transfer without an answer.
+        start_upload(&mut host);
+        send(
+            &mut host,
+            ClientRequest::Abort {
+                index: 0x1008,
+                sub: 0,
+                code: AbortCode::GENERAL,
+            },
+        );
+        let deadline = Instant::now() + Duration::from_millis(100);
+        while let Ok(f) = host.bus.recv(deadline) {
+            assert_ne!(f.raw_id(), sdo_tx, "answered an abort");
+        }
+        // The next segment request finds no transfer.
+        send(&mut host, ClientRequest::UploadSegment { toggle: false });
+        let f = host.recv_until(|f| f.raw_id() == sdo_tx);
+        assert!(matches!(
+            ServerResponse::decode(&f).unwrap().1,
+            ServerResponse::Abort {
+                code: AbortCode::BAD_COMMAND,
+                ..
+            }
+        ));
+        stop.store(true, Ordering::Relaxed);
+        h.join().unwrap();
+    }
+
+    #[test]
+    fn quick_stop_decelerates_then_holds() {
+        let (mut host, stop, _, h) = start();
+        host.enable();
         // A slow deceleration makes the stopping distance visible: 100 000 counts/s².
         host.sdo_write(0x6085, 0, 100_000u32.to_le_bytes().to_vec())
             .unwrap();
