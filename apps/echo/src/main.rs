@@ -6,6 +6,7 @@ use std::sync::Arc;
 use clap::Parser;
 use stride_lcmtypes::stride::PingT;
 use stride_node::{Node, NodeArgs};
+use stride_ping::PingChannels;
 
 /// Echo stride-ping's probes back, so round trips over the LCM bus can be measured.
 ///
@@ -15,12 +16,8 @@ use stride_node::{Node, NodeArgs};
 struct Cli {
     #[command(flatten)]
     node: NodeArgs,
-    /// Channel the pings arrive on.
-    #[arg(long, default_value = "STRIDE_PING")]
-    channel: String,
-    /// Channel the echoes are published on.
-    #[arg(long, default_value = "STRIDE_PING_ECHO")]
-    reply_channel: String,
+    #[command(flatten)]
+    channels: PingChannels,
     /// Stop after echoing this many pings (0: never).
     #[arg(long, default_value_t = 0)]
     count: u64,
@@ -33,19 +30,21 @@ fn main() -> anyhow::Result<()> {
     let name = node.name().to_owned();
     let echoed = Arc::new(AtomicU64::new(0));
     let e = echoed.clone();
-    let reply = cli.reply_channel.clone();
-    let sub = node.lcm().subscribe(&cli.channel, move |_, mut m: PingT| {
-        m.echoed_by.clone_from(&name);
-        match publisher.publish(&reply, &m) {
-            Ok(()) => {
-                e.fetch_add(1, Ordering::Relaxed);
+    let reply = cli.channels.reply_channel.clone();
+    let sub = node
+        .lcm()
+        .subscribe(&cli.channels.channel, move |_, mut m: PingT| {
+            m.echoed_by.clone_from(&name);
+            match publisher.publish(&reply, &m) {
+                Ok(()) => {
+                    e.fetch_add(1, Ordering::Relaxed);
+                }
+                Err(err) => tracing::warn!(error = %err, "could not echo"),
             }
-            Err(err) => tracing::warn!(error = %err, "could not echo"),
-        }
-    })?;
+        })?;
     tracing::info!(
-        channel = cli.channel.as_str(),
-        reply = cli.reply_channel.as_str(),
+        channel = cli.channels.channel.as_str(),
+        reply = cli.channels.reply_channel.as_str(),
         "echoing"
     );
     let count = cli.count;

@@ -1,6 +1,18 @@
-//! Round-trip statistics for `stride-ping`.
+//! Round-trip statistics for `stride-ping`, and the channel flags it shares with
+//! `stride-echo`.
 
 use std::time::Duration;
+
+/// The two channels of a ping and its echo (`--channel`, `--reply-channel`).
+#[derive(clap::Args, Debug, Clone, PartialEq, Eq)]
+pub struct PingChannels {
+    /// Channel the pings travel on.
+    #[arg(long, default_value = "STRIDE_PING")]
+    pub channel: String,
+    /// Channel the echoes travel on.
+    #[arg(long, default_value = "STRIDE_PING_ECHO")]
+    pub reply_channel: String,
+}
 
 /// Latency percentiles of a set of round trips.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -8,6 +8,7 @@ use anyhow::bail;
 use clap::Parser;
 use stride_lcmtypes::stride::PingT;
 use stride_node::{Node, NodeArgs, Stamper};
+use stride_ping::PingChannels;
 
 /// Send pings on the LCM bus and measure how long their echoes take to come back.
 ///
@@ -18,12 +19,8 @@ use stride_node::{Node, NodeArgs, Stamper};
 struct Cli {
     #[command(flatten)]
     node: NodeArgs,
-    /// Channel the pings are published on.
-    #[arg(long, default_value = "STRIDE_PING")]
-    channel: String,
-    /// Channel the echoes come back on.
-    #[arg(long, default_value = "STRIDE_PING_ECHO")]
-    reply_channel: String,
+    #[command(flatten)]
+    channels: PingChannels,
     /// Pings per second.
     #[arg(long, default_value_t = 10.0)]
     rate: f64,
@@ -48,7 +45,7 @@ fn main() -> anyhow::Result<()> {
     let r = rtts.clone();
     let _sub = node
         .lcm()
-        .subscribe(&cli.reply_channel, move |info, m: PingT| {
+        .subscribe(&cli.channels.reply_channel, move |info, m: PingT| {
             if m.echoed_by.is_empty() {
                 return;
             }
@@ -67,7 +64,7 @@ fn main() -> anyhow::Result<()> {
     let mut next = Instant::now();
     node.set_running();
     tracing::info!(
-        channel = cli.channel.as_str(),
+        channel = cli.channels.channel.as_str(),
         rate = cli.rate,
         size = cli.size,
         "pinging"
@@ -83,7 +80,7 @@ fn main() -> anyhow::Result<()> {
                 payload_size: cli.size as i32,
                 payload: vec![0x5a; cli.size],
             };
-            node.lcm().publish(&cli.channel, &ping)?;
+            node.lcm().publish(&cli.channels.channel, &ping)?;
             sent += 1;
             next += period;
         } else {
@@ -102,7 +99,7 @@ fn main() -> anyhow::Result<()> {
     if summary.received == 0 {
         bail!(
             "no echo came back on {} (is stride-echo running on this bus?)",
-            cli.reply_channel
+            cli.channels.reply_channel
         );
     }
     Ok(())
