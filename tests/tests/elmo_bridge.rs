@@ -23,6 +23,18 @@ fn config() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../config/robots/archie-left-leg.toml")
 }
 
+/// True when every joint of `s` is within its configured tolerance of `want`.
+fn within_tolerance(s: &JointStateT, want: &[f64]) -> bool {
+    let cfg: stride_elmo_bridge::BridgeConfig =
+        toml::from_str(&std::fs::read_to_string(config()).unwrap()).unwrap();
+    s.names == JOINTS
+        && s.positions
+            .iter()
+            .zip(want)
+            .zip(&cfg.joint)
+            .all(|((p, q), j)| (p - q).abs() < j.tolerance)
+}
+
 /// A smooth move from 0 to `amp` (scaled per joint; the knee only bends forward) in `secs`.
 fn trajectory(secs: f64, amp: f64) -> JointTrajectoryT {
     let dt = 0.01;
@@ -118,13 +130,11 @@ fn a_trajectory_reaches_the_drives_and_states_come_back() {
     lcm.publish("JOINT_TRAJECTORY_LEFT_LEG", &t).unwrap();
     let last = t.positions.last().unwrap().clone();
     let reached = wait_for(&lcm, 10, || {
-        w.states.lock().unwrap().last().is_some_and(|s| {
-            s.names == JOINTS
-                && s.positions
-                    .iter()
-                    .zip(&last)
-                    .all(|(p, q)| (p - q).abs() < 2e-3)
-        })
+        w.states
+            .lock()
+            .unwrap()
+            .last()
+            .is_some_and(|s| within_tolerance(s, &last))
     });
     assert!(
         reached,
@@ -258,13 +268,12 @@ fn the_whole_chain_bridge_lcm_gateway_pty_dongle_drives() {
     lcm.publish("JOINT_TRAJECTORY_LEFT_LEG", &t).unwrap();
     let last = t.positions.last().unwrap().clone();
     assert!(
-        wait_for(&lcm, 15, || w.states.lock().unwrap().last().is_some_and(
-            |s| s
-                .positions
-                .iter()
-                .zip(&last)
-                .all(|(p, q)| (p - q).abs() < 2e-3)
-        )),
+        wait_for(&lcm, 15, || w
+            .states
+            .lock()
+            .unwrap()
+            .last()
+            .is_some_and(|s| within_tolerance(s, &last))),
         "joints did not reach the end through the chain: {:?}",
         w.states.lock().unwrap().last()
     );

@@ -85,6 +85,12 @@ impl BridgeConfig {
                     j.name
                 ));
             }
+            if !(j.tolerance > 0.0 && j.tolerance < j.max_position - j.min_position) {
+                return Err(format!(
+                    "joint {}: tolerance {} rad must be positive and less than the joint's range",
+                    j.name, j.tolerance
+                ));
+            }
         }
         Ok(())
     }
