@@ -27,6 +27,16 @@ pub const IP_DATA: u16 = 0x60c1;
 pub const IP_PERIOD: u16 = 0x60c2;
 /// Interpolation data configuration (0x60C4): buffer sizes.
 pub const IP_BUFFER: u16 = 0x60c4;
+/// Profile velocity (0x6081), counts/s.
+pub const PROFILE_VELOCITY: u16 = 0x6081;
+/// Profile acceleration (0x6083), counts/s².
+pub const PROFILE_ACCELERATION: u16 = 0x6083;
+/// Profile deceleration (0x6084), counts/s².
+pub const PROFILE_DECELERATION: u16 = 0x6084;
+/// Following error window (0x6065), counts.
+pub const FOLLOWING_ERROR_WINDOW: u16 = 0x6065;
+/// Quick stop deceleration (0x6085), counts/s².
+pub const QUICK_STOP_DECELERATION: u16 = 0x6085;
 
 /// A mode of operation (0x6060 / 0x6061).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -181,6 +191,137 @@ impl Command {
     }
 }
 
+/// The operation-mode-specific controlword bits (4, 5, 6 and 8), added to a [`Command`]'s
+/// value while operation is enabled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ModeControl {
+    /// Profile position (mode 1): a rising edge of bit 4 hands over a new set-point; bit 5
+    /// makes it replace the one under way, bit 6 makes it relative.
+    ProfilePosition {
+        /// Bit 4: new set-point.
+        new_setpoint: bool,
+        /// Bit 5: change set immediately.
+        immediately: bool,
+        /// Bit 6: the target is relative to the present one.
+        relative: bool,
+    },
+    /// Interpolated position (mode 7): bit 4 enables interpolation (the buffer plays).
+    InterpolatedPosition {
+        /// Bit 4: enable interpolation.
+        enable: bool,
+    },
+    /// Cyclic synchronous position (mode 8): no mode bits; the target (0x607A) written every
+    /// SYNC is followed.
+    CyclicPosition,
+}
+
+impl ModeControl {
+    /// The full controlword: `base` (see [`Command::controlword`]), the mode bits, and bit 8
+    /// (halt) when `halt` is set.
+    pub fn controlword(self, base: Command, halt: bool) -> u16 {
+        let bits = match self {
+            ModeControl::ProfilePosition {
+                new_setpoint,
+                immediately,
+                relative,
+            } => (new_setpoint as u16) << 4 | (immediately as u16) << 5 | (relative as u16) << 6,
+            ModeControl::InterpolatedPosition { enable } => (enable as u16) << 4,
+            ModeControl::CyclicPosition => 0,
+        };
+        base.controlword() | bits | (halt as u16) << 8
+    }
+}
+
+/// The operation-mode-specific statusword bits (10 to 13), read in the mode they belong to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct ModeStatus {
+    /// Bit 10: target reached (in profile position: the set-point is reached; after a halt:
+    /// the axis stands).
+    pub target_reached: bool,
+    /// Bit 11: an internal limit is active.
+    pub internal_limit: bool,
+    /// Bit 12: profile position: set-point acknowledged; interpolated position: interpolation
+    /// active; cyclic synchronous position: the drive follows the target.
+    pub mode_bit: bool,
+    /// Bit 13: profile position and cyclic synchronous position: following error.
+    pub following_error: bool,
+}
+
+impl ModeStatus {
+    /// Reads bits 10 to 13 of a statusword.
+    pub fn from_statusword(sw: u16) -> ModeStatus {
+        let bit = |b: u16| sw & (1 << b) != 0;
+        ModeStatus {
+            target_reached: bit(10),
+            internal_limit: bit(11),
+            mode_bit: bit(12),
+            following_error: bit(13),
+        }
+    }
+
+    /// The bits as a drive sets them.
+    pub fn statusword_bits(self) -> u16 {
+        (self.target_reached as u16) << 10
+            | (self.internal_limit as u16) << 11
+            | (self.mode_bit as u16) << 12
+            | (self.following_error as u16) << 13
+    }
+}
+
+/// A profile-position move: the SDO writes that set it up (mode, target, profile velocity,
+/// acceleration and deceleration, in this order) and the set-point handshake.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct ProfileMove {
+    /// Target position, counts.
+    pub target: i32,
+    /// Profile velocity, counts/s.
+    pub velocity: u32,
+    /// Profile acceleration, counts/s².
+    pub acceleration: u32,
+    /// Profile deceleration, counts/s².
+    pub deceleration: u32,
+    /// Relative to the present target.
+    pub relative: bool,
+    /// Replaces a move under way instead of queueing after it.
+    pub immediately: bool,
+}
+
+impl ProfileMove {
+    /// The objects to write before the handshake, as (index, sub, little-endian bytes).
+    pub fn writes(&self) -> Vec<(u16, u8, Vec<u8>)> {
+        vec![
+            (
+                MODES_OF_OPERATION,
+                0,
+                vec![Mode::ProfilePosition.code() as u8],
+            ),
+            (TARGET_POSITION, 0, self.target.to_le_bytes().to_vec()),
+            (PROFILE_VELOCITY, 0, self.velocity.to_le_bytes().to_vec()),
+            (
+                PROFILE_ACCELERATION,
+                0,
+                self.acceleration.to_le_bytes().to_vec(),
+            ),
+            (
+                PROFILE_DECELERATION,
+                0,
+                self.deceleration.to_le_bytes().to_vec(),
+            ),
+        ]
+    }
+
+    /// The controlword with bit 4 `set` (the handshake raises it, waits for statusword bit
+    /// 12, then lowers it).
+    pub fn controlword(&self, set: bool) -> u16 {
+        ModeControl::ProfilePosition {
+            new_setpoint: set,
+            immediately: self.immediately,
+            relative: self.relative,
+        }
+        .controlword(Command::EnableOperation, false)
+    }
+}
+
 /// The drive side: the state a drive moves to when it receives `cw` in `state` (the
 /// transitions of CiA 402 figure 13; a fault reset needs a rising edge of bit 7, so pass the
 /// previous controlword too). Fault detection itself is the drive's business.
@@ -244,6 +385,54 @@ pub fn step_towards(from: State, to: State) -> Option<Command> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn mode_bits_golden_values() {
+        // Profile position: enable operation + new set-point = 0x1F; with "change set
+        // immediately" 0x3F; relative 0x5F; bit 4 low again 0x0F; halt sets bit 8.
+        let pp = |n, i, r| ModeControl::ProfilePosition {
+            new_setpoint: n,
+            immediately: i,
+            relative: r,
+        };
+        let en = Command::EnableOperation;
+        assert_eq!(pp(true, false, false).controlword(en, false), 0x001f);
+        assert_eq!(pp(true, true, false).controlword(en, false), 0x003f);
+        assert_eq!(pp(true, false, true).controlword(en, false), 0x005f);
+        assert_eq!(pp(false, false, false).controlword(en, true), 0x010f);
+        // Interpolated position: bit 4 enables interpolation.
+        let ip = ModeControl::InterpolatedPosition { enable: true };
+        assert_eq!(ip.controlword(en, false), 0x001f);
+        assert_eq!(ModeControl::CyclicPosition.controlword(en, false), 0x000f);
+        // Statusword 0x1637: operation enabled, remote, target reached, set-point acknowledged.
+        let st = ModeStatus::from_statusword(0x1637);
+        assert!(st.target_reached && st.mode_bit && !st.following_error && !st.internal_limit);
+        assert_eq!(State::from_statusword(0x1637), State::OperationEnabled);
+        assert_eq!(st.statusword_bits(), 0x1400);
+        assert!(ModeStatus::from_statusword(0x2000).following_error);
+        let mv = ProfileMove {
+            target: -1000,
+            velocity: 50_000,
+            acceleration: 200_000,
+            deceleration: 100_000,
+            relative: false,
+            immediately: true,
+        };
+        assert_eq!(
+            mv.writes(),
+            vec![
+                (0x6060, 0, vec![1]),
+                (0x607a, 0, vec![0x18, 0xfc, 0xff, 0xff]),
+                (0x6081, 0, vec![0x50, 0xc3, 0x00, 0x00]),
+                (0x6083, 0, vec![0x40, 0x0d, 0x03, 0x00]),
+                (0x6084, 0, vec![0xa0, 0x86, 0x01, 0x00]),
+            ]
+        );
+        assert_eq!(
+            (mv.controlword(true), mv.controlword(false)),
+            (0x003f, 0x002f)
+        );
+    }
 
     #[test]
     fn statusword_golden_values() {

@@ -620,7 +620,12 @@ impl<B: CanBus> Master<B> {
             let hb = self.cfg.heartbeat.as_millis() as u16;
             self.write(a, 0x1017, 0, hb.to_le_bytes().to_vec())?;
             let window = self.axes[a].cfg.tolerance_counts();
-            self.write(a, 0x6065, 0, window.to_le_bytes().to_vec())?;
+            self.write(
+                a,
+                ds402::FOLLOWING_ERROR_WINDOW,
+                0,
+                window.to_le_bytes().to_vec(),
+            )?;
             if let Motion::InterpolatedPosition { period_ms } = self.cfg.motion {
                 self.write(
                     a,
@@ -956,7 +961,9 @@ impl<B: CanBus> Master<B> {
                     // RPDO1 carries the controlword: enable operation + enable interpolation.
                     Motion::InterpolatedPosition { .. } => vec![CanFrame::standard(
                         CobId::of(Function::Rpdo(1), node).raw(),
-                        &0x001fu16.to_le_bytes(),
+                        &ds402::ModeControl::InterpolatedPosition { enable: true }
+                            .controlword(ds402::Command::EnableOperation, false)
+                            .to_le_bytes(),
                     )
                     .expect("valid frame")],
                 };
@@ -1073,7 +1080,9 @@ impl<B: CanBus> Master<B> {
                             // Bit 4 must fall before the next start (a rising edge starts).
                             let cw = CanFrame::standard(
                                 CobId::of(Function::Rpdo(1), ax.node).raw(),
-                                &0x000fu16.to_le_bytes(),
+                                &ds402::ModeControl::InterpolatedPosition { enable: false }
+                                    .controlword(ds402::Command::EnableOperation, false)
+                                    .to_le_bytes(),
                             )
                             .expect("valid frame");
                             let _ = self.bus.send(&cw, now + self.cfg.sdo_timeout);

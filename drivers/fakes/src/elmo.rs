@@ -129,8 +129,53 @@ pub struct FakeElmo {
     sync_count: u32,
     booted: bool,
     ip_bit: bool,
+    /// Profile position: the move under way, and the set-point acknowledge (statusword bit 12).
+    profile: Option<Profile>,
+    setpoint_ack: bool,
     /// Speed of the command while decelerating in quick stop, counts/s.
     qs_velocity: f64,
+}
+
+/// A profile-position move: a trapezoid (or triangle) of velocity from `from` to `to`.
+#[derive(Debug, Clone, Copy)]
+struct Profile {
+    from: f64,
+    to: f64,
+    /// Cruise velocity, acceleration and deceleration (counts/s, counts/s²), positive.
+    v: f64,
+    a: f64,
+    d: f64,
+    elapsed: f64,
+}
+
+impl Profile {
+    /// Position at the elapsed time, and whether the move is over.
+    fn position(&self) -> (f64, bool) {
+        let dist = (self.to - self.from).abs();
+        let sign = (self.to - self.from).signum();
+        // The peak velocity: cruise, or lower when the move is too short to reach it.
+        let peak = self
+            .v
+            .min((2.0 * dist * self.a * self.d / (self.a + self.d)).sqrt());
+        if peak <= 0.0 {
+            return (self.to, true);
+        }
+        let (ta, td) = (peak / self.a, peak / self.d);
+        let tc =
+            (dist - peak * peak / (2.0 * self.a) - peak * peak / (2.0 * self.d)).max(0.0) / peak;
+        let t = self.elapsed;
+        let s = if t < ta {
+            self.a * t * t / 2.0
+        } else if t < ta + tc {
+            peak * ta / 2.0 + peak * (t - ta)
+        } else if t < ta + tc + td {
+            let u = ta + tc + td - t;
+            dist - self.d * u * u / 2.0
+        } else {
+            return (self.to, true);
+        };
+        (self.from + sign * s, false)
+    }
 }
 
 /// The kinds of tabulated motion.
@@ -198,6 +243,8 @@ impl FakeElmo {
             sync_count: 0,
             booted: false,
             ip_bit: false,
+            profile: None,
+            setpoint_ack: false,
             qs_velocity: 0.0,
             cfg,
         };
@@ -257,9 +304,16 @@ impl FakeElmo {
         put(ds402::VELOCITY_ACTUAL, 0, Ro, le(0, 4));
         put(ds402::TARGET_POSITION, 0, Rw, le(0, 4));
         put(ds402::FOLLOWING_ERROR, 0, Ro, le(0, 4));
-        put(0x6065, 0, Rw, le(self.cfg.following_error_window as i64, 4));
-        // Quick stop deceleration, counts/s².
-        put(0x6085, 0, Rw, le(2_000_000, 4));
+        put(
+            ds402::FOLLOWING_ERROR_WINDOW,
+            0,
+            Rw,
+            le(self.cfg.following_error_window as i64, 4),
+        );
+        put(ds402::QUICK_STOP_DECELERATION, 0, Rw, le(2_000_000, 4));
+        put(ds402::PROFILE_VELOCITY, 0, Rw, le(100_000, 4));
+        put(ds402::PROFILE_ACCELERATION, 0, Rw, le(1_000_000, 4));
+        put(ds402::PROFILE_DECELERATION, 0, Rw, le(1_000_000, 4));
         put(ds402::IP_SUBMODE, 0, Rw, le(0, 2));
         put(ds402::IP_PERIOD, 1, Rw, vec![10]);
         put(ds402::IP_PERIOD, 2, Rw, vec![(-3i8) as u8]);
@@ -603,12 +657,38 @@ impl FakeElmo {
                 );
                 if self.drive != DriveState::OperationEnabled {
                     self.motion = None;
+                    self.profile = None;
                 }
-                // Interpolated position mode: bit 4 ("enable interpolation") starts the buffer.
-                let ip_mode = self.get_u(ds402::MODES_OF_OPERATION, 0) as i8 == 7;
+                let mode = self.get_u(ds402::MODES_OF_OPERATION, 0) as i8;
                 let enabled = self.drive == DriveState::OperationEnabled;
-                if ip_mode && enabled && cw & 0x10 != 0 && self.prev_ip_bit_clear() {
+                let rising = cw & 0x10 != 0 && self.prev_ip_bit_clear();
+                // Interpolated position mode: bit 4 ("enable interpolation") starts the buffer.
+                if mode == 7 && enabled && rising {
                     self.begin_motion(Table::Ip, Instant::now());
+                }
+                // Profile position: bit 4 rising hands over a set-point (bit 6: relative),
+                // acknowledged in statusword bit 12 until bit 4 falls. This fake takes every
+                // set-point at once, as if bit 5 ("change set immediately") were set.
+                if mode == 1 && enabled && rising {
+                    let target = self.get_u(ds402::TARGET_POSITION, 0) as u32 as i32 as f64;
+                    let to = if cw & 0x40 != 0 {
+                        self.profile.map_or(self.commanded, |p| p.to) + target
+                    } else {
+                        target
+                    };
+                    let rate = |i| (self.get_u(i, 0) as u32).max(1) as f64;
+                    self.profile = Some(Profile {
+                        from: self.commanded,
+                        to,
+                        v: rate(ds402::PROFILE_VELOCITY),
+                        a: rate(ds402::PROFILE_ACCELERATION),
+                        d: rate(ds402::PROFILE_DECELERATION),
+                        elapsed: 0.0,
+                    });
+                    self.setpoint_ack = true;
+                }
+                if cw & 0x10 == 0 {
+                    self.setpoint_ack = false;
                 }
                 self.ip_bit = cw & 0x10 != 0;
             }
@@ -651,10 +731,21 @@ impl FakeElmo {
     }
 
     fn update_status(&mut self) {
-        let mut sw = self.drive.statusword_bits() | 0x0200; // remote
-        if self.motion.is_none() && (self.commanded - self.actual).abs() < 1.0 {
-            sw |= 0x0400; // target reached
-        }
+        let mode = self.get_u(ds402::MODES_OF_OPERATION, 0) as i8;
+        let status = ds402::ModeStatus {
+            target_reached: self.motion.is_none()
+                && self.profile.is_none()
+                && (self.commanded - self.actual).abs() < 1.0,
+            internal_limit: false,
+            // Profile position: set-point acknowledged; interpolated position: active.
+            mode_bit: match mode {
+                1 => self.setpoint_ack,
+                7 => self.motion.is_some_and(|_| self.playing == Table::Ip),
+                _ => false,
+            },
+            following_error: false,
+        };
+        let sw = self.drive.statusword_bits() | 0x0200 /* remote */ | status.statusword_bits();
         self.set_raw(ds402::STATUSWORD, 0, sw as i64);
         self.set_raw(ds402::POSITION_ACTUAL, 0, self.actual.round() as i64);
         self.set_raw(ds402::VELOCITY_ACTUAL, 0, self.velocity.round() as i64);
@@ -1008,9 +1099,16 @@ impl FakeElmo {
                 self.motion = Some(seg);
             }
         }
+        // Profile position: the command follows the trapezoid.
+        if let Some(mut p) = self.profile {
+            p.elapsed += dt;
+            let (position, done) = p.position();
+            self.commanded = position;
+            self.profile = (!done).then_some(p);
+        }
         // Quick stop: the command decelerates to a stop at 0x6085, then holds.
         if self.drive == DriveState::QuickStopActive && dt > 0.0 {
-            let decel = self.get_u(0x6085, 0).max(1) as f64;
+            let decel = self.get_u(ds402::QUICK_STOP_DECELERATION, 0).max(1) as f64;
             let dv = decel * dt;
             self.qs_velocity = if self.qs_velocity.abs() <= dv {
                 0.0
@@ -1028,7 +1126,7 @@ impl FakeElmo {
         } else {
             self.velocity = 0.0;
         }
-        let window = self.get_u(0x6065, 0) as f64;
+        let window = self.get_u(ds402::FOLLOWING_ERROR_WINDOW, 0) as f64;
         if self.motor_on && (self.commanded - self.actual).abs() > window {
             self.fault(bus, 0x8611); // following error
         }
@@ -1039,6 +1137,7 @@ impl FakeElmo {
         self.drive = DriveState::Fault;
         self.motor_on = false;
         self.motion = None;
+        self.profile = None;
         self.update_status();
         let e = Emcy {
             node: self.cfg.node,
@@ -1494,6 +1593,67 @@ mod tests {
                 ..
             }
         ));
+        stop.store(true, Ordering::Relaxed);
+        h.join().unwrap();
+    }
+
+    #[test]
+    fn profile_position_handshake_and_trapezoid() {
+        let (mut host, stop, _, h) = start();
+        host.enable();
+        let status = |host: &mut Host| {
+            let sw = host.sdo_read(0x6041, 0).unwrap();
+            ds402::ModeStatus::from_statusword(u16::from_le_bytes([sw[0], sw[1]]))
+        };
+        // 20 000 counts at 100 000 counts/s, accelerating and braking at 1 000 000 counts/s²:
+        // 0.1 s cruising plus 0.1 s of ramps, 0.3 s in all.
+        let mv = ds402::ProfileMove {
+            target: 20_000,
+            velocity: 100_000,
+            acceleration: 1_000_000,
+            deceleration: 1_000_000,
+            relative: false,
+            immediately: true,
+        };
+        for (i, s, v) in mv.writes() {
+            host.sdo_write(i, s, v).unwrap();
+        }
+        let t0 = Instant::now();
+        host.sdo_write(0x6040, 0, mv.controlword(true).to_le_bytes().to_vec())
+            .unwrap();
+        let st = status(&mut host);
+        assert!(st.mode_bit && !st.target_reached, "{st:?}");
+        host.sdo_write(0x6040, 0, mv.controlword(false).to_le_bytes().to_vec())
+            .unwrap();
+        assert!(!status(&mut host).mode_bit, "acknowledge stays up");
+        while !status(&mut host).target_reached {
+            assert!(t0.elapsed() < Duration::from_secs(3), "never reached");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!(
+            t0.elapsed() >= Duration::from_millis(290),
+            "{:?}",
+            t0.elapsed()
+        );
+        assert!((host.position() - 20_000).abs() <= 1);
+        // A relative set-point goes on from there.
+        let back = ds402::ProfileMove {
+            target: -5_000,
+            relative: true,
+            ..mv
+        };
+        for (i, s, v) in back.writes() {
+            host.sdo_write(i, s, v).unwrap();
+        }
+        host.sdo_write(0x6040, 0, back.controlword(true).to_le_bytes().to_vec())
+            .unwrap();
+        host.sdo_write(0x6040, 0, back.controlword(false).to_le_bytes().to_vec())
+            .unwrap();
+        while !status(&mut host).target_reached {
+            assert!(t0.elapsed() < Duration::from_secs(5), "never reached");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!((host.position() - 15_000).abs() <= 1);
         stop.store(true, Ordering::Relaxed);
         h.join().unwrap();
     }
