@@ -2,4 +2,5 @@
 //! device would be: tests never reach inside.
 
 pub mod dongle;
+pub mod dynamixel;
 pub mod elmo;

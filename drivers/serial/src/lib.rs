@@ -1,0 +1,201 @@
+//! Serial transports for the motor buses (Dynamixel TTL/RS-485, the Arduino link): one trait
+//! with deadlines ([`Transport`]), implemented for every `serialport` port (real devices and
+//! pseudo-terminals), and [`Paced`], which holds writes to the time they take on the wire at a
+//! baud rate (so a fake device on a pty answers as slowly as the real one).
+//!
+//! Transports know no protocol: they move bytes, and say when a deadline passed.
+
+use std::io;
+use std::time::{Duration, Instant};
+
+/// A byte stream to a device, read with deadlines.
+pub trait Transport: Send {
+    /// Writes all of `bytes` (and flushes them out).
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()>;
+
+    /// Reads what is there into `buf`, waiting until `deadline` for the first byte; `Ok(0)`
+    /// when the deadline passed with nothing.
+    fn read_until(&mut self, buf: &mut [u8], deadline: Instant) -> io::Result<usize>;
+
+    /// Drops bytes received and not yet read (a late answer must not be taken for the next).
+    fn discard_input(&mut self) -> io::Result<()>;
+
+    /// The line's baud rate (wire times are computed from it).
+    fn baud(&self) -> u32;
+}
+
+/// Time on the wire of `bytes` bytes at `baud`, 10 bits a byte (start, 8 data, stop).
+pub fn wire_time(bytes: usize, baud: u32) -> Duration {
+    Duration::from_nanos((bytes as u64 * 10 * 1_000_000_000) / baud.max(1) as u64)
+}
+
+/// A `serialport` port (a device or a pty end) as a [`Transport`].
+#[derive(Debug)]
+pub struct Port<P: serialport::SerialPort> {
+    port: P,
+    baud: u32,
+}
+
+impl<P: serialport::SerialPort> Port<P> {
+    /// Wraps `port`; `baud` is the line's rate (a pty has none of its own).
+    pub fn new(port: P, baud: u32) -> Port<P> {
+        Port { port, baud }
+    }
+
+    /// The port itself.
+    pub fn get_mut(&mut self) -> &mut P {
+        &mut self.port
+    }
+}
+
+impl<P: serialport::SerialPort + Send> Transport for Port<P> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.port.write_all(bytes)?;
+        self.port.flush()
+    }
+
+    fn read_until(&mut self, buf: &mut [u8], deadline: Instant) -> io::Result<usize> {
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            // serialport's read times out after the port's timeout; a zero timeout polls.
+            self.port
+                .set_timeout(left.max(Duration::from_micros(100)))
+                .map_err(io::Error::other)?;
+            match self.port.read(buf) {
+                Ok(0) => {}
+                Ok(n) => return Ok(n),
+                Err(e) if e.kind() == io::ErrorKind::TimedOut => {}
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+            if Instant::now() >= deadline {
+                return Ok(0);
+            }
+        }
+    }
+
+    fn discard_input(&mut self) -> io::Result<()> {
+        self.port
+            .clear(serialport::ClearBuffer::Input)
+            .map_err(io::Error::other)?;
+        // A pty has no input queue to clear in the driver: read what is there.
+        let mut sink = [0u8; 256];
+        while self.read_until(&mut sink, Instant::now())? > 0 {}
+        Ok(())
+    }
+
+    fn baud(&self) -> u32 {
+        self.baud
+    }
+}
+
+/// Opens a serial device at `baud` for a motor bus (8N1, no flow control).
+pub fn open(path: &str, baud: u32) -> io::Result<Port<serialport::TTYPort>> {
+    let port = serialport::new(path, baud)
+        .timeout(Duration::from_millis(10))
+        .open_native()
+        .map_err(|e| io::Error::other(format!("opening {path} at {baud} baud: {e}")))?;
+    Ok(Port::new(port, baud))
+}
+
+/// A pair of connected pseudo-terminal ends at a nominal `baud`: (host end, device end).
+pub fn pty_pair(baud: u32) -> io::Result<(Port<serialport::TTYPort>, Port<serialport::TTYPort>)> {
+    let (a, b) = serialport::TTYPort::pair().map_err(io::Error::other)?;
+    Ok((Port::new(a, baud), Port::new(b, baud)))
+}
+
+/// Holds each write until the bytes would have left a real line at the transport's baud rate
+/// (writes queue behind each other as on a UART).
+#[derive(Debug)]
+pub struct Paced<T: Transport> {
+    inner: T,
+    line_free: Instant,
+}
+
+impl<T: Transport> Paced<T> {
+    /// Paces `inner` at its baud rate.
+    pub fn new(inner: T) -> Paced<T> {
+        Paced {
+            inner,
+            line_free: Instant::now(),
+        }
+    }
+}
+
+impl<T: Transport> Transport for Paced<T> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        let start = self.line_free.max(Instant::now());
+        self.line_free = start + wire_time(bytes.len(), self.inner.baud());
+        sleep_until(self.line_free);
+        self.inner.write_all(bytes)
+    }
+
+    fn read_until(&mut self, buf: &mut [u8], deadline: Instant) -> io::Result<usize> {
+        self.inner.read_until(buf, deadline)
+    }
+
+    fn discard_input(&mut self) -> io::Result<()> {
+        self.inner.discard_input()
+    }
+
+    fn baud(&self) -> u32 {
+        self.inner.baud()
+    }
+}
+
+/// Sleeps until `t` (the last stretch spinning, for sub-millisecond accuracy).
+pub fn sleep_until(t: Instant) {
+    loop {
+        let now = Instant::now();
+        if now >= t {
+            return;
+        }
+        let left = t - now;
+        if left > Duration::from_micros(200) {
+            std::thread::sleep(left - Duration::from_micros(150));
+        } else {
+            std::hint::spin_loop();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pty_moves_bytes_with_deadlines_and_pacing() {
+        let (mut host, dev) = pty_pair(115_200).unwrap();
+        let mut dev = Paced::new(dev);
+        // Nothing there: the deadline passes with 0 bytes.
+        let mut buf = [0u8; 64];
+        let t = Instant::now();
+        assert_eq!(
+            host.read_until(&mut buf, t + Duration::from_millis(20))
+                .unwrap(),
+            0
+        );
+        assert!(t.elapsed() >= Duration::from_millis(20));
+        // 100 bytes at 115 200 baud take 8.7 ms on the wire.
+        let t = Instant::now();
+        dev.write_all(&[0x55; 100]).unwrap();
+        assert!(t.elapsed() >= wire_time(100, 115_200));
+        let mut got = 0;
+        while got < 100 {
+            let n = host
+                .read_until(&mut buf, Instant::now() + Duration::from_secs(1))
+                .unwrap();
+            assert!(n > 0);
+            got += n;
+        }
+        assert_eq!(wire_time(100, 1_000_000), Duration::from_millis(1));
+        dev.write_all(&[1, 2, 3]).unwrap();
+        std::thread::sleep(Duration::from_millis(5));
+        host.discard_input().unwrap();
+        assert_eq!(
+            host.read_until(&mut buf, Instant::now() + Duration::from_millis(5))
+                .unwrap(),
+            0
+        );
+    }
+}
