@@ -97,6 +97,11 @@ impl Servo {
         self.id
     }
 
+    /// True while its torque is on.
+    pub fn torque_on(&self) -> bool {
+        self.get("torque_enable") == 1
+    }
+
     fn get(&self, name: &str) -> i64 {
         self.model.item(name).map_or(0, |i| {
             let v = i.decode(&self.table[i.address as usize..]).unwrap_or(0);
@@ -303,8 +308,15 @@ impl FakeChain {
             let mut s1 = v1::Splitter::new();
             let mut s2 = v2::Splitter::new();
             let mut buf = [0u8; 1024];
+            // Answers wait for their time here, while the line is still listened to: a late
+            // servo does not hold back the others' answers to later instructions.
+            let mut due: std::collections::VecDeque<(Instant, Vec<u8>)> = Default::default();
             while !stop.load(Ordering::Relaxed) {
-                let n = match line.read_until(&mut buf, Instant::now() + Duration::from_millis(2)) {
+                let wake = due
+                    .front()
+                    .map_or(Instant::now() + Duration::from_millis(2), |(t, _)| *t)
+                    .min(Instant::now() + Duration::from_millis(2));
+                let n = match line.read_until(&mut buf, wake) {
                     Ok(n) => n,
                     Err(_) => {
                         std::thread::sleep(Duration::from_millis(2));
@@ -329,14 +341,26 @@ impl FakeChain {
                 })
                 .collect();
                 for p in packets {
+                    // Answers to one instruction follow each other, each after its delay.
+                    let mut t = Instant::now();
                     for (delay, bytes) in self.handle(&p) {
-                        std::thread::sleep(delay);
-                        let _ = line.write_all(&bytes);
+                        t += delay;
+                        let at = due.partition_point(|(d, _)| *d <= t);
+                        due.insert(at, (t, bytes));
                     }
+                }
+                while due.front().is_some_and(|(t, _)| *t <= Instant::now()) {
+                    let (_, bytes) = due.pop_front().expect("front");
+                    let _ = line.write_all(&bytes);
                 }
             }
             self
         })
+    }
+
+    /// The servos, as they are now.
+    pub fn servos(&self) -> &[Servo] {
+        &self.servos
     }
 
     fn advance(&mut self, now: Instant) {

@@ -24,6 +24,21 @@ pub trait Transport: Send {
     fn baud(&self) -> u32;
 }
 
+impl<T: Transport + ?Sized> Transport for Box<T> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        (**self).write_all(bytes)
+    }
+    fn read_until(&mut self, buf: &mut [u8], deadline: Instant) -> io::Result<usize> {
+        (**self).read_until(buf, deadline)
+    }
+    fn discard_input(&mut self) -> io::Result<()> {
+        (**self).discard_input()
+    }
+    fn baud(&self) -> u32 {
+        (**self).baud()
+    }
+}
+
 /// Time on the wire of `bytes` bytes at `baud`, 10 bits a byte (start, 8 data, stop).
 pub fn wire_time(bytes: usize, baud: u32) -> Duration {
     Duration::from_nanos((bytes as u64 * 10 * 1_000_000_000) / baud.max(1) as u64)
