@@ -2,8 +2,8 @@
 //! and servo health back.
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc};
-use std::time::{Duration, Instant};
+use std::sync::Arc;
+use std::time::Duration;
 
 use anyhow::{bail, Context};
 use clap::Parser;
@@ -12,7 +12,7 @@ use stride_dynamixel_bridge::{BridgeConfig, Chain};
 use stride_dynamixel_bus::{Bus, BusConfig};
 use stride_fakes::dynamixel::{ChainLevers, FakeChain, Servo};
 use stride_lcmtypes::stride::{JointCommandT, NodeStatusT};
-use stride_node::{load_config, Node, NodeArgs, Stamper};
+use stride_node::{load_config, Node, NodeArgs, Stamper, Ticker};
 use stride_serial::{Paced, Transport};
 
 /// Drive a chain of Dynamixel servos (Protocol 1.0 or 2.0) from LCM joint commands.
@@ -131,29 +131,15 @@ fn main() -> anyhow::Result<()> {
         port = cfg.port.as_str(),
         "servos ready, torque on"
     );
+    // Listen before saying so: a command sent on seeing RUNNING must not be lost.
+    let (_sub, rx) = node.queue::<JointCommandT>(&cfg.command_channel)?;
     node.set_running();
 
-    let (tx, rx) = mpsc::channel::<JointCommandT>();
-    let _sub = node
-        .lcm()
-        .subscribe(&cfg.command_channel, move |_, m: JointCommandT| {
-            let _ = tx.send(m);
-        })?;
     let publisher = node.publisher();
     let mut stamper = Stamper::new("");
-    let period = Duration::from_secs_f64(1.0 / cfg.rate_hz);
-    let mut next = Instant::now();
+    let mut ticker = Ticker::new(cfg.rate_hz);
     let mut rejected = 0u64;
-    while node.running() {
-        let now = Instant::now();
-        if now < next {
-            node.lcm().handle_timeout(next - now)?;
-            continue;
-        }
-        next += period;
-        if next < now {
-            next = now + period; // a late cycle is not caught up in a burst
-        }
+    while let Some(now) = ticker.wait(&node)? {
         while let Ok(m) = rx.try_recv() {
             if let Err(e) = chain.command(&m, now) {
                 rejected += 1;

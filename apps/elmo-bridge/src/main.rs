@@ -1,9 +1,9 @@
 //! `stride-elmo-bridge`: joint trajectories from LCM to Elmo drives on CAN, joint states back.
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc};
+use std::sync::Arc;
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::{bail, Context};
 use clap::Parser;
@@ -12,7 +12,7 @@ use stride_elmo::{Event, Master, MasterConfig};
 use stride_elmo_bridge::{state_msg, trajectory_from_msg, BridgeConfig, Recovery, Watchdog};
 use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
 use stride_lcmtypes::stride::{JointTrajectoryT, NodeStatusT};
-use stride_node::{load_config, Node, NodeArgs, Stamper};
+use stride_node::{load_config, Node, NodeArgs, Stamper, Ticker};
 
 /// Drive Elmo motion controllers over CANopen from LCM joint trajectories.
 ///
@@ -97,28 +97,17 @@ fn main() -> anyhow::Result<()> {
         bus = cfg.bus.as_str(),
         "drives enabled"
     );
+    // Listen before saying so: a command sent on seeing RUNNING must not be lost.
+    let (_sub, rx) = node.queue::<JointTrajectoryT>(&cfg.trajectory_channel)?;
     node.set_running();
 
-    let (tx, rx) = mpsc::channel::<JointTrajectoryT>();
-    let _sub = node
-        .lcm()
-        .subscribe(&cfg.trajectory_channel, move |_, m: JointTrajectoryT| {
-            let _ = tx.send(m);
-        })?;
     let publisher = node.publisher();
     let mut stamper = Stamper::new("");
     let mut watchdog = Watchdog::new(cfg.stream_timeout_ms);
-    let period = Duration::from_secs_f64(1.0 / cfg.state_rate_hz);
-    let mut next = Instant::now();
+    let mut ticker = Ticker::new(cfg.state_rate_hz);
     let mut rejected = 0u64;
     let mut recovery = Recovery::new(cfg.recovery_delay_ms);
-    while node.running() {
-        let now = Instant::now();
-        if now < next {
-            node.lcm().handle_timeout(next - now)?;
-            continue;
-        }
-        next += period;
+    while let Some(now) = ticker.wait(&node)? {
         if recovery.pending() {
             // The drives are down: nothing is loaded until they are up again.
             while let Ok(m) = rx.try_recv() {

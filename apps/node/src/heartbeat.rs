@@ -11,8 +11,16 @@ use crate::stamp::Stamper;
 use crate::Health;
 
 pub(crate) struct Heartbeat {
-    stop: Arc<(Mutex<bool>, Condvar)>,
+    signal: Arc<(Mutex<Signal>, Condvar)>,
     thread: JoinHandle<()>,
+}
+
+/// What wakes the heartbeat thread early.
+#[derive(Default)]
+struct Signal {
+    stopped: bool,
+    /// The health changed: publish it now rather than at the next beat.
+    changed: bool,
 }
 
 struct Beat {
@@ -73,8 +81,8 @@ impl Heartbeat {
         started: Instant,
         period: Duration,
     ) -> std::io::Result<Heartbeat> {
-        let stop = Arc::new((Mutex::new(false), Condvar::new()));
-        let stop2 = stop.clone();
+        let signal = Arc::new((Mutex::new(Signal::default()), Condvar::new()));
+        let signal2 = signal.clone();
         let mut beat = Beat {
             publisher,
             channel,
@@ -87,35 +95,45 @@ impl Heartbeat {
         let thread = std::thread::Builder::new()
             .name("heartbeat".into())
             .spawn(move || {
-                let (lock, cv) = &*stop2;
+                let (lock, cv) = &*signal2;
                 let mut next = Instant::now();
                 loop {
                     beat.publish();
-                    next += period;
-                    let mut stopped = lock.lock().unwrap_or_else(|p| p.into_inner());
-                    while !*stopped {
+                    let mut sig = lock.lock().unwrap_or_else(|p| p.into_inner());
+                    loop {
                         let now = Instant::now();
-                        if now >= next {
+                        if sig.stopped || sig.changed || now >= next {
                             break;
                         }
-                        stopped = cv
-                            .wait_timeout(stopped, next - now)
+                        sig = cv
+                            .wait_timeout(sig, next - now)
                             .unwrap_or_else(|p| p.into_inner())
                             .0;
                     }
-                    if *stopped {
-                        drop(stopped);
+                    if sig.stopped {
+                        drop(sig);
                         beat.publish(); // the final STOPPING status
                         return;
                     }
+                    if std::mem::take(&mut sig.changed) {
+                        continue; // an extra beat now; the regular ones keep their time
+                    }
+                    next += period;
                 }
             })?;
-        Ok(Heartbeat { stop, thread })
+        Ok(Heartbeat { signal, thread })
+    }
+
+    /// Publishes the health now (it changed).
+    pub(crate) fn poke(&self) {
+        let (lock, cv) = &*self.signal;
+        lock.lock().unwrap_or_else(|p| p.into_inner()).changed = true;
+        cv.notify_all();
     }
 
     pub(crate) fn stop(self) {
-        let (lock, cv) = &*self.stop;
-        *lock.lock().unwrap_or_else(|p| p.into_inner()) = true;
+        let (lock, cv) = &*self.signal;
+        lock.lock().unwrap_or_else(|p| p.into_inner()).stopped = true;
         cv.notify_all();
         let _ = self.thread.join();
     }

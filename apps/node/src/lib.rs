@@ -3,8 +3,9 @@
 //! It gives each app the same command-line flags ([`NodeArgs`]: `--lcm-url`, `--config`,
 //! `--log-level`, `--name`), `tracing` logs, TOML configuration ([`load_config`]), a
 //! [`stride.node_status_t`](stride_lcmtypes::stride::NodeStatusT) heartbeat published at 1 Hz
-//! on `STRIDE_STATUS`, and a clean shutdown on SIGINT/SIGTERM, so that an app's `main.rs`
-//! only wires its logic to the bus:
+//! on `STRIDE_STATUS` (and at once when the app's health changes), queues of incoming messages
+//! and a fixed-rate loop for the main thread ([`Node::queue`], [`Ticker`]), and a clean
+//! shutdown on SIGINT/SIGTERM, so that an app's `main.rs` only wires its logic to the bus:
 //!
 //! ```no_run
 //! use clap::Parser;
@@ -185,11 +186,19 @@ impl Node {
         self.started.elapsed()
     }
 
-    /// Sets the state and detail the heartbeat reports.
+    /// Sets the state and detail the heartbeat reports; a change is published at once.
     pub fn set_health(&self, state: i8, detail: impl Into<String>) {
+        let detail = detail.into();
         let mut h = self.health.lock().unwrap_or_else(|p| p.into_inner());
+        if h.state == state && h.detail == detail {
+            return;
+        }
         h.state = state;
-        h.detail = detail.into();
+        h.detail = detail;
+        drop(h);
+        if let Some(hb) = &self.heartbeat {
+            hb.poke();
+        }
     }
 
     /// Marks the node running (the state most apps report after start-up).
@@ -210,6 +219,22 @@ impl Node {
     /// The flag the signal handlers set; share it with worker threads.
     pub fn shutdown_flag(&self) -> Arc<AtomicBool> {
         self.shutdown.clone()
+    }
+
+    /// Subscribes to `channel` and queues each decoded message for the main loop (a loop that
+    /// does its work between [`Ticker`] ticks takes them with `try_recv`).
+    pub fn queue<M>(
+        &self,
+        channel: &str,
+    ) -> anyhow::Result<(lcm::Subscription, std::sync::mpsc::Receiver<M>)>
+    where
+        M: lcm::Message + Send + 'static,
+    {
+        let (tx, rx) = std::sync::mpsc::channel();
+        let sub = self.lcm.subscribe(channel, move |_, m: M| {
+            let _ = tx.send(m);
+        })?;
+        Ok((sub, rx))
     }
 
     /// Handles messages until shutdown is requested. Marks the node running first.
@@ -253,5 +278,42 @@ impl Drop for Node {
             lost = s.lost,
             "node stopped"
         );
+    }
+}
+
+/// A loop at a fixed rate that handles LCM messages while it waits for the next tick.
+#[derive(Debug, Clone)]
+pub struct Ticker {
+    period: Duration,
+    next: Instant,
+}
+
+impl Ticker {
+    /// Ticks `rate_hz` times a second, the first one now.
+    pub fn new(rate_hz: f64) -> Ticker {
+        Ticker {
+            period: Duration::from_secs_f64(1.0 / rate_hz),
+            next: Instant::now(),
+        }
+    }
+
+    /// Handles `node`'s messages until the next tick and returns its time; `None` once the
+    /// node is shutting down. A tick missed by more than a period is skipped, not caught up in
+    /// a burst.
+    pub fn wait(&mut self, node: &Node) -> anyhow::Result<Option<Instant>> {
+        loop {
+            if !node.running() {
+                return Ok(None);
+            }
+            let now = Instant::now();
+            if now >= self.next {
+                self.next += self.period;
+                if self.next < now {
+                    self.next = now + self.period;
+                }
+                return Ok(Some(now));
+            }
+            node.lcm().handle_timeout(self.next - now)?;
+        }
     }
 }

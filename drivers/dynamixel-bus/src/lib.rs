@@ -89,6 +89,8 @@ pub struct Bus<T: Transport> {
     s1: v1::Splitter,
     s2: v2::Splitter,
     stats: BusStats,
+    /// Tries each servo did not answer in time, by id.
+    missed: [u32; 256],
 }
 
 impl<T: Transport> std::fmt::Debug for Bus<T> {
@@ -128,6 +130,7 @@ impl<T: Transport> Bus<T> {
             s1: v1::Splitter::new(),
             s2: v2::Splitter::new(),
             stats: BusStats::default(),
+            missed: [0; 256],
         }
     }
 
@@ -139,6 +142,12 @@ impl<T: Transport> Bus<T> {
     /// Changes the expected return delay (after writing it to the servos).
     pub fn set_return_delay(&mut self, d: Duration) {
         self.cfg.return_delay = d;
+    }
+
+    /// Tries servo `id` did not answer in time, since the start (answers that came on a retry
+    /// count their lost tries).
+    pub fn missed(&self, id: u8) -> u32 {
+        self.missed[id as usize]
     }
 
     /// Counters so far.
@@ -267,6 +276,13 @@ impl<T: Transport> Bus<T> {
                 {
                     Some((_, g)) => *g = Some(s),
                     None => self.stats.unexpected += 1,
+                }
+            }
+            // A fast read that did not come back cannot say whose answer broke it: it is
+            // counted for the bus, not for a servo.
+            for ((i, _), g) in expect.iter().zip(&got) {
+                if g.is_none() && !fast {
+                    self.missed[*i as usize] += 1;
                 }
             }
             if got.iter().all(Option::is_some) || tries > self.cfg.retries {

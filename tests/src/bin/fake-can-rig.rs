@@ -1,6 +1,6 @@
 //! `fake-can-rig`: a USB2CAN dongle on a pseudo-terminal with fake Elmo drives behind it, as a
 //! process, for the end-to-end tests. Writes the terminal's path to `--pty-file`, then runs
-//! until killed. SIGUSR1 puts the first drive in fault (an over-current), as a bench would. SIGUSR1 puts the first drive in fault (an over-current), as a bench would.
+//! until killed. SIGUSR1 puts the first drive in fault (an over-current), as a bench would.
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;

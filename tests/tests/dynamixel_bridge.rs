@@ -1,0 +1,170 @@
+//! stride-dynamixel-bridge as a process against a fake servo chain process on a pty: the
+//! hexapod's 18 AX-12A with one missing, one overheating and one answering late.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use lcm::Lcm;
+use stride_lcmtypes::stride::{DynamixelStateT, JointCommandT, JointStateT, NodeStatusT};
+use stride_tests::{bin, in_sandbox, udpm_url, Proc};
+
+fn chain(dir: &Path, args: &[&str]) -> (Proc, String) {
+    let pty_file = dir.join(format!(
+        "pty-{}",
+        args.join("_").replace(['/', ':', ','], "-")
+    ));
+    let mut c = Command::new(bin("fake-dynamixel-chain"));
+    c.arg("--pty-file").arg(&pty_file).args(args);
+    let p = Proc::spawn(c);
+    let t0 = Instant::now();
+    while !pty_file.exists() && t0.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    std::thread::sleep(Duration::from_millis(50));
+    let path = std::fs::read_to_string(&pty_file).unwrap();
+    (p, path)
+}
+
+/// The hexapod's configuration with the chain's terminal as its port.
+fn config(dir: &Path, pty: &str) -> PathBuf {
+    let text = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../config/robots/hexapod-dynamixel.toml"),
+    )
+    .unwrap()
+    .replace("port = \"sim\"", &format!("port = \"{pty}\""))
+    // A pty on a busy test machine answers later than a servo.
+    .replace("margin_ms = 3.0", "margin_ms = 15.0");
+    let path = dir.join(format!("hexapod-{}.toml", pty.replace('/', "-")));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn command(positions: &[(&str, f64)]) -> JointCommandT {
+    let n = positions.len();
+    JointCommandT {
+        num_joints: n as i32,
+        names: positions.iter().map(|(j, _)| j.to_string()).collect(),
+        modes: vec![JointCommandT::MODE_POSITION; n],
+        setpoints: positions.iter().map(|(_, p)| *p).collect(),
+        velocities: vec![0.0; n],
+        ..Default::default()
+    }
+}
+
+fn wait_for(lcm: &Lcm, secs: u64, mut done: impl FnMut() -> bool) -> bool {
+    let deadline = Instant::now() + Duration::from_secs(secs);
+    while Instant::now() < deadline {
+        if done() {
+            return true;
+        }
+        lcm.handle_timeout(Duration::from_millis(20)).unwrap();
+    }
+    done()
+}
+
+#[test]
+fn a_missing_servo_stops_the_start_with_its_name() {
+    if !in_sandbox() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (rig, pty) = chain(dir.path(), &["--missing", "7"]);
+    let out = Command::new(bin("stride-dynamixel-bridge"))
+        .args([
+            "--lcm-url",
+            &udpm_url(7761),
+            "--log-level",
+            "error",
+            "--config",
+        ])
+        .arg(config(dir.path(), &pty))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("lr_coxa (id 7)"), "{err}");
+    drop(rig);
+}
+
+#[test]
+fn the_hexapod_chain_with_an_overheating_and_a_late_servo() {
+    if !in_sandbox() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (rig, pty) = chain(dir.path(), &["--overheat", "5", "--late", "12:40"]);
+    let url = udpm_url(7762);
+    let lcm = Lcm::new(&url).unwrap();
+    let states = Arc::new(Mutex::new(Vec::<JointStateT>::new()));
+    let health = Arc::new(Mutex::new(Vec::<DynamixelStateT>::new()));
+    let status = Arc::new(Mutex::new(Vec::<NodeStatusT>::new()));
+    let (s1, s2, s3) = (states.clone(), health.clone(), status.clone());
+    let _subs = [
+        lcm.subscribe("HEXAPOD_JOINT_STATE", move |_, m: JointStateT| {
+            s1.lock().unwrap().push(m)
+        })
+        .unwrap(),
+        lcm.subscribe("HEXAPOD_DYNAMIXEL_STATE", move |_, m: DynamixelStateT| {
+            s2.lock().unwrap().push(m)
+        })
+        .unwrap(),
+        lcm.subscribe("STRIDE_STATUS", move |_, m: NodeStatusT| {
+            s3.lock().unwrap().push(m)
+        })
+        .unwrap(),
+    ];
+    let mut c = Command::new(bin("stride-dynamixel-bridge"));
+    c.args(["--lcm-url", &url, "--log-level", "warn", "--config"])
+        .arg(config(dir.path(), &pty));
+    let bridge = Proc::spawn(c);
+    let running = |s: &NodeStatusT| {
+        s.node == "stride-dynamixel-bridge" && s.state == NodeStatusT::STATE_RUNNING
+    };
+    assert!(
+        wait_for(&lcm, 15, || status.lock().unwrap().iter().any(running)),
+        "the bridge never came up"
+    );
+    // A command within limits moves the legs.
+    let cmd = command(&[("lf_femur", 0.4), ("rm_tibia", -0.6)]);
+    let reached = wait_for(&lcm, 10, || {
+        lcm.publish("HEXAPOD_JOINT_COMMAND", &cmd).unwrap();
+        std::thread::sleep(Duration::from_millis(20));
+        states.lock().unwrap().last().is_some_and(|s| {
+            (s.positions[1] - 0.4).abs() < 0.01 && (s.positions[14] + 0.6).abs() < 0.01
+        })
+    });
+    assert!(reached, "{:?}", states.lock().unwrap().last());
+    // The overheating servo is reported; the late one's replies time out, counted, and the
+    // others are read every cycle all the same.
+    let h = health.lock().unwrap().last().cloned().unwrap();
+    assert_eq!(
+        h.errors[4] & DynamixelStateT::ERROR_OVERHEATING,
+        DynamixelStateT::ERROR_OVERHEATING
+    );
+    assert!(h.timeouts[11] > 0, "{:?}", h.timeouts);
+    assert!(
+        h.timeouts
+            .iter()
+            .enumerate()
+            .all(|(k, &t)| k == 11 || t == 0),
+        "{:?}",
+        h.timeouts
+    );
+    // Past a limit: refused, reported.
+    lcm.publish("HEXAPOD_JOINT_COMMAND", &command(&[("lf_coxa", 2.0)]))
+        .unwrap();
+    assert!(wait_for(&lcm, 5, || status.lock().unwrap().iter().any(
+        |s| s.node == "stride-dynamixel-bridge" && s.detail.contains("command rejected")
+    )));
+    // Commands stop: the bridge says it holds.
+    assert!(wait_for(&lcm, 5, || status.lock().unwrap().iter().any(
+        |s| s.node == "stride-dynamixel-bridge" && s.detail.contains("holding")
+    )));
+    let (st, _) = bridge.interrupt();
+    assert!(st.success());
+    // The torque went off on shutdown.
+    let (_, out) = rig.interrupt();
+    assert!(out.contains("torque on: []"), "{out}");
+}
