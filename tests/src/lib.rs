@@ -18,6 +18,18 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+/// Handles `lcm`'s messages until `done` holds or `timeout` passes; whether `done` held.
+pub fn handle_until(lcm: &lcm::Lcm, timeout: Duration, mut done: impl FnMut() -> bool) -> bool {
+    let deadline = Instant::now() + timeout;
+    while Instant::now() < deadline {
+        if done() {
+            return true;
+        }
+        lcm.handle_timeout(Duration::from_millis(20)).unwrap();
+    }
+    done()
+}
+
 /// True inside the private network namespace `scripts/test` makes (multicast stays on its `lo`).
 ///
 /// Tests that use `udpm://` return early outside it: multicast must never reach the host's

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use lcm::{Lcm, LogReader, LogWriter, Message};
 use stride_lcmtypes::stride::{HeaderT, PingT};
-use stride_tests::{bin, in_sandbox, udpm_url, Proc};
+use stride_tests::{bin, handle_until, in_sandbox, udpm_url, Proc};
 
 fn ping(seq: i64, size: usize) -> PingT {
     PingT {
@@ -22,18 +22,6 @@ fn ping(seq: i64, size: usize) -> PingT {
         payload_size: size as i32,
         payload: (0..size).map(|i| (i * 7 + seq as usize) as u8).collect(),
     }
-}
-
-/// Handles messages until `done` or the deadline; returns whether `done` became true.
-fn handle_until(lcm: &Lcm, timeout: Duration, mut done: impl FnMut() -> bool) -> bool {
-    let deadline = Instant::now() + timeout;
-    while Instant::now() < deadline {
-        if done() {
-            return true;
-        }
-        lcm.handle_timeout(Duration::from_millis(20)).unwrap();
-    }
-    done()
 }
 
 #[test]

@@ -53,15 +53,8 @@ fn command(positions: &[(&str, f64)]) -> JointCommandT {
     }
 }
 
-fn wait_for(lcm: &Lcm, secs: u64, mut done: impl FnMut() -> bool) -> bool {
-    let deadline = Instant::now() + Duration::from_secs(secs);
-    while Instant::now() < deadline {
-        if done() {
-            return true;
-        }
-        lcm.handle_timeout(Duration::from_millis(20)).unwrap();
-    }
-    done()
+fn wait_for(lcm: &Lcm, secs: u64, done: impl FnMut() -> bool) -> bool {
+    stride_tests::handle_until(lcm, Duration::from_secs(secs), done)
 }
 
 #[test]
