@@ -2,5 +2,6 @@
 //! device would be: tests never reach inside.
 
 pub mod dongle;
+pub mod due;
 pub mod dynamixel;
 pub mod elmo;
