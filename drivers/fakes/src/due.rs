@@ -147,19 +147,34 @@ impl FakeDue {
     /// A joint's applied duty, 1/10000.
     pub fn duty(&self, joint: usize) -> i32 {
         // SAFETY: a read on a live board; joint is bounded by the board.
-        unsafe { fake_due_duty(self.ptr.as_ptr(), joint.min(self.cfg.joints as usize - 1) as i32) }
+        unsafe {
+            fake_due_duty(
+                self.ptr.as_ptr(),
+                joint.min(self.cfg.joints as usize - 1) as i32,
+            )
+        }
     }
 
     /// Whether a joint's brake is on.
     pub fn braked(&self, joint: usize) -> bool {
         // SAFETY: as in duty.
-        unsafe { fake_due_braked(self.ptr.as_ptr(), joint.min(self.cfg.joints as usize - 1) as i32) != 0 }
+        unsafe {
+            fake_due_braked(
+                self.ptr.as_ptr(),
+                joint.min(self.cfg.joints as usize - 1) as i32,
+            ) != 0
+        }
     }
 
     /// A joint's position, rad.
     pub fn position(&self, joint: usize) -> f64 {
         // SAFETY: as in duty.
-        unsafe { fake_due_position(self.ptr.as_ptr(), joint.min(self.cfg.joints as usize - 1) as i32) }
+        unsafe {
+            fake_due_position(
+                self.ptr.as_ptr(),
+                joint.min(self.cfg.joints as usize - 1) as i32,
+            )
+        }
     }
 
     /// Runs the board on its own thread on `line` (wrap it in `stride_serial::Paced` for the
