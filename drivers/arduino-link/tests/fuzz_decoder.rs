@@ -2,7 +2,7 @@
 //! and every good frame sent after the damage arrives.
 
 use proptest::prelude::*;
-use stride_arduino_link::{Decoder, Frame, Message};
+use stride_link::{Decoder, Frame, Message};
 
 fn frame() -> impl Strategy<Value = Frame> {
     (

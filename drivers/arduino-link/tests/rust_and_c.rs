@@ -2,7 +2,7 @@
 //! board) agree on random frames, both directions, byte for byte.
 
 use proptest::prelude::*;
-use stride_arduino_link::{crc16, Decoder, Frame};
+use stride_link::{crc16, Decoder, Frame};
 
 // The C codec is compiled into stride-fakes (the fake board is built on it).
 use stride_fakes as _;

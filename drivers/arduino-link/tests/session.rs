@@ -4,9 +4,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use stride_arduino_link::host::Session;
-use stride_arduino_link::{fault, nack, JointCommand, Message, Mode};
 use stride_fakes::due::{DueConfig, DueLevers, FakeDue};
+use stride_link::host::Session;
+use stride_link::{fault, nack, JointCommand, Message, Mode};
 use stride_serial::{pty_pair, Paced, Port};
 
 type Line = Port<serialport::TTYPort>;

@@ -1,0 +1,415 @@
+//! The logic of `stride-arduino-link`: configuration, the limits every command is checked
+//! against, the complementary filter that turns the MPU-6050's raw samples into the hip's
+//! attitude, and the LCM messages. The link itself is `stride-link`'s.
+
+use stride_lcmtypes::stride::{ArduinoJointStateT, HeaderT, ImuT, JointCommandT, JointStateT};
+use stride_link::{JointCommand, JointState, Message, Mode};
+
+/// One joint of the board.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointConfig {
+    /// Joint name (as in commands and states).
+    pub name: String,
+    /// Index on the board (0..joints).
+    pub index: u8,
+    /// Largest duty this joint may be commanded, in (0, 1].
+    pub max_duty: f64,
+    /// Position limits for position commands, rad.
+    pub min_position: f64,
+    /// Upper position limit, rad.
+    pub max_position: f64,
+}
+
+/// The app's TOML configuration.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LinkConfig {
+    /// Serial device of the board (prefer a `/dev/serial/by-id/...` name: it is the same after
+    /// the board is plugged back in), or `sim` for a fake board in this process.
+    pub port: String,
+    /// Baud rate.
+    pub baud: u32,
+    /// Name of the board (in states and logs).
+    pub board: String,
+    /// Loop rate: commands out, heartbeats when there are none, Hz.
+    pub rate_hz: f64,
+    /// How long the board may take to answer the handshake after the port opens (opening it
+    /// resets the Due: its boot loader runs first), ms.
+    pub handshake_timeout_ms: u64,
+    /// Wait between attempts to reopen a port that vanished, ms.
+    pub reconnect_ms: u64,
+    /// A joint whose current goes above this is braked by the host and reported, A.
+    pub current_limit_a: f64,
+    /// Time constant of the attitude filter (the accelerometer's weight against the gyro), s.
+    pub imu_time_constant_s: f64,
+    /// Channel of incoming `stride.joint_command_t`.
+    pub command_channel: String,
+    /// Channel of outgoing `stride.arduino_joint_state_t`.
+    pub state_channel: String,
+    /// Channel of outgoing `stride.joint_state_t`.
+    pub joint_state_channel: String,
+    /// Channel of outgoing `stride.imu_t` (raw sample in SI units, attitude from the filter).
+    pub imu_channel: String,
+    /// The joints.
+    pub joint: Vec<JointConfig>,
+}
+
+impl Default for LinkConfig {
+    fn default() -> Self {
+        LinkConfig {
+            port: "sim".into(),
+            baud: 115_200,
+            board: "board".into(),
+            rate_hz: 100.0,
+            handshake_timeout_ms: 3000,
+            reconnect_ms: 500,
+            current_limit_a: 6.0,
+            imu_time_constant_s: 0.5,
+            command_channel: "JOINT_COMMAND".into(),
+            state_channel: "ARDUINO_STATE".into(),
+            joint_state_channel: "JOINT_STATE".into(),
+            imu_channel: "IMU".into(),
+            joint: Vec::new(),
+        }
+    }
+}
+
+impl LinkConfig {
+    /// Checks what serde cannot.
+    pub fn check(&self) -> Result<(), String> {
+        if self.joint.is_empty() {
+            return Err("the configuration lists no [[joint]]".into());
+        }
+        if !(1.0..=1000.0).contains(&self.rate_hz) {
+            return Err(format!("rate_hz {} outside 1..=1000", self.rate_hz));
+        }
+        let mut seen = std::collections::BTreeSet::new();
+        for j in &self.joint {
+            if !seen.insert(j.index) || j.index > 7 {
+                return Err(format!(
+                    "joint {}: index {} used twice or above 7",
+                    j.name, j.index
+                ));
+            }
+            if !(j.max_duty > 0.0 && j.max_duty <= 1.0) {
+                return Err(format!("joint {}: max_duty must be in (0, 1]", j.name));
+            }
+            if !(j.min_position < j.max_position && j.min_position >= -3.2 && j.max_position <= 3.2)
+            {
+                return Err(format!(
+                    "joint {}: position limits must be ordered, within ±3.2 rad",
+                    j.name
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks a command against every limit and turns it into the board's set-points; nothing
+    /// of a command that breaks one is sent.
+    pub fn to_board(&self, c: &JointCommandT) -> Result<Vec<JointCommand>, Reject> {
+        let n = c.names.len();
+        if c.modes.len() != n || c.setpoints.len() != n {
+            return Err(Reject::Malformed);
+        }
+        let mut out = Vec::with_capacity(n);
+        for k in 0..n {
+            let j = self
+                .joint
+                .iter()
+                .find(|j| j.name == c.names[k])
+                .ok_or_else(|| Reject::UnknownJoint(c.names[k].clone()))?;
+            let v = c.setpoints[k];
+            let (mode, value) = match c.modes[k] {
+                JointCommandT::MODE_DUTY => {
+                    if v.abs() > j.max_duty || v.is_nan() {
+                        return Err(Reject::Limit {
+                            joint: j.name.clone(),
+                            what: format!("duty {v:.3} beyond ±{}", j.max_duty),
+                        });
+                    }
+                    (Mode::Duty, (v * 10_000.0).round() as i16)
+                }
+                JointCommandT::MODE_POSITION => {
+                    if !(j.min_position..=j.max_position).contains(&v) {
+                        return Err(Reject::Limit {
+                            joint: j.name.clone(),
+                            what: format!(
+                                "position {v:.4} rad outside [{}, {}]",
+                                j.min_position, j.max_position
+                            ),
+                        });
+                    }
+                    (Mode::Position, (v * 10_000.0).round() as i16)
+                }
+                JointCommandT::MODE_BRAKE => (Mode::Brake, 0),
+                JointCommandT::MODE_DISABLE => (Mode::Coast, 0),
+                _ => return Err(Reject::Mode(j.name.clone())),
+            };
+            out.push(JointCommand {
+                joint: j.index,
+                mode,
+                value,
+            });
+        }
+        Ok(out)
+    }
+
+    /// A command that brakes every joint.
+    pub fn brake_all(&self) -> Message {
+        Message::Command(
+            self.joint
+                .iter()
+                .map(|j| JointCommand {
+                    joint: j.index,
+                    mode: Mode::Brake,
+                    value: 0,
+                })
+                .collect(),
+        )
+    }
+}
+
+/// Why a command was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Reject {
+    /// A joint this board does not drive.
+    #[error("unknown joint {0}")]
+    UnknownJoint(String),
+    /// Velocity and current modes are not the board's.
+    #[error("joint {0}: the board takes duty, position, brake and disable")]
+    Mode(String),
+    /// Beyond a limit.
+    #[error("joint {joint}: {what}")]
+    Limit {
+        /// The joint.
+        joint: String,
+        /// Which limit, by how much.
+        what: String,
+    },
+    /// Arrays of different lengths.
+    #[error("malformed command: arrays of different lengths")]
+    Malformed,
+}
+
+/// MPU-6050 at ±2 g and ±250 °/s: counts per g and per rad/s.
+pub const ACCEL_COUNTS_PER_G: f64 = 16_384.0;
+/// Gyro counts per rad/s.
+pub const GYRO_COUNTS_PER_RAD_S: f64 = 131.0 * 180.0 / std::f64::consts::PI;
+/// Standard gravity, m/s².
+pub const G: f64 = 9.806_65;
+
+/// A complementary filter: roll and pitch from the gyro, pulled towards the accelerometer's
+/// gravity direction with time constant `tau`; yaw from the gyro alone.
+#[derive(Debug, Clone)]
+pub struct Attitude {
+    tau: f64,
+    /// Roll, pitch, yaw, rad.
+    pub rpy: [f64; 3],
+    started: bool,
+}
+
+impl Attitude {
+    /// A filter with time constant `tau` seconds.
+    pub fn new(tau: f64) -> Attitude {
+        Attitude {
+            tau,
+            rpy: [0.0; 3],
+            started: false,
+        }
+    }
+
+    /// Takes one sample (accelerometer in g, gyro in rad/s) `dt` seconds after the last.
+    pub fn update(&mut self, accel: [f64; 3], gyro: [f64; 3], dt: f64) {
+        let roll_acc = accel[1].atan2(accel[2]);
+        let pitch_acc = (-accel[0]).atan2((accel[1] * accel[1] + accel[2] * accel[2]).sqrt());
+        if !self.started {
+            // Start from the accelerometer, not from zero.
+            self.rpy = [roll_acc, pitch_acc, 0.0];
+            self.started = true;
+            return;
+        }
+        let a = self.tau / (self.tau + dt.max(0.0));
+        self.rpy[0] = a * (self.rpy[0] + gyro[0] * dt) + (1.0 - a) * roll_acc;
+        self.rpy[1] = a * (self.rpy[1] + gyro[1] * dt) + (1.0 - a) * pitch_acc;
+        self.rpy[2] += gyro[2] * dt;
+    }
+
+    /// The attitude as a quaternion (w, x, y, z), roll-pitch-yaw (x, y, z) convention.
+    pub fn quaternion(&self) -> [f64; 4] {
+        let [r, p, y] = self.rpy.map(|a| a / 2.0);
+        let (cr, sr, cp, sp, cy, sy) = (r.cos(), r.sin(), p.cos(), p.sin(), y.cos(), y.sin());
+        [
+            cr * cp * cy + sr * sp * sy,
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+        ]
+    }
+}
+
+/// The board's raw sample as `stride.imu_t`, with the filter's attitude.
+pub fn imu_msg(
+    header: HeaderT,
+    accel: [i16; 3],
+    temperature: i16,
+    gyro: [i16; 3],
+    att: &Attitude,
+) -> ImuT {
+    ImuT {
+        header,
+        orientation: att.quaternion(),
+        angular_velocity: gyro.map(|g| g as f64 / GYRO_COUNTS_PER_RAD_S),
+        linear_acceleration: accel.map(|a| a as f64 / ACCEL_COUNTS_PER_G * G),
+        temperature: (temperature as f32) / 340.0 + 36.53,
+    }
+}
+
+/// The board's STATE as `stride.arduino_joint_state_t` and `stride.joint_state_t`.
+pub fn state_msgs(
+    cfg: &LinkConfig,
+    header: HeaderT,
+    firmware: &str,
+    joints: &[JointState],
+    imu: ([i16; 3], [i16; 3]),
+    link_errors: i32,
+) -> (ArduinoJointStateT, JointStateT) {
+    let picked: Vec<(&JointConfig, JointState)> = cfg
+        .joint
+        .iter()
+        .filter_map(|j| joints.get(j.index as usize).map(|s| (j, *s)))
+        .collect();
+    let n = picked.len();
+    let names: Vec<String> = picked.iter().map(|(j, _)| j.name.clone()).collect();
+    let positions: Vec<f64> = picked
+        .iter()
+        .map(|(_, s)| s.position as f64 * 1e-5)
+        .collect();
+    let velocities: Vec<f64> = picked
+        .iter()
+        .map(|(_, s)| s.velocity as f64 * 1e-3)
+        .collect();
+    let currents: Vec<f32> = picked
+        .iter()
+        .map(|(_, s)| s.current as f32 / 1000.0)
+        .collect();
+    let temperatures: Vec<f32> = picked.iter().map(|(_, s)| s.temperature as f32).collect();
+    let faults: Vec<i8> = picked.iter().map(|(_, s)| (s.flags >> 1) as i8).collect();
+    let arduino = ArduinoJointStateT {
+        header: header.clone(),
+        port: cfg.port.clone(),
+        firmware: firmware.to_owned(),
+        num_joints: n as i32,
+        joint_names: names.clone(),
+        positions: positions.clone(),
+        velocities: velocities.clone(),
+        currents: currents.clone(),
+        temperatures: temperatures.clone(),
+        duty: picked
+            .iter()
+            .map(|(_, s)| s.duty as f32 / 10_000.0)
+            .collect(),
+        brake: picked.iter().map(|(_, s)| s.flags & 1 == 1).collect(),
+        faults: faults.clone(),
+        imu_accel: imu.0,
+        imu_gyro: imu.1,
+        link_errors,
+    };
+    let js = JointStateT {
+        header,
+        num_joints: n as i32,
+        names,
+        positions,
+        velocities,
+        currents: currents.iter().map(|&c| c as f64).collect(),
+        temperatures,
+        faults: faults.iter().map(|&f| f as i32).collect(),
+    };
+    (arduino, js)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shipped(name: &str) -> LinkConfig {
+        let path = format!("{}/../../config/robots/{name}", env!("CARGO_MANIFEST_DIR"));
+        toml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+    }
+
+    fn cmd(name: &str, mode: i8, v: f64) -> JointCommandT {
+        JointCommandT {
+            num_joints: 1,
+            names: vec![name.into()],
+            modes: vec![mode],
+            setpoints: vec![v],
+            velocities: vec![0.0],
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn shipped_configs_and_limits() {
+        for f in [
+            "archie-arduino-left-leg.toml",
+            "archie-arduino-right-leg.toml",
+        ] {
+            let cfg = shipped(f);
+            cfg.check().unwrap();
+            assert_eq!(cfg.joint.len(), 6);
+        }
+        let cfg = shipped("archie-arduino-left-leg.toml");
+        let knee = &cfg.joint[3].name;
+        let ok = cfg
+            .to_board(&cmd(knee, JointCommandT::MODE_DUTY, 0.5))
+            .unwrap();
+        assert_eq!(ok[0].value, 5000);
+        assert!(matches!(
+            cfg.to_board(&cmd(knee, JointCommandT::MODE_DUTY, 0.95)),
+            Err(Reject::Limit { .. })
+        ));
+        assert!(matches!(
+            cfg.to_board(&cmd(knee, JointCommandT::MODE_POSITION, 3.0)),
+            Err(Reject::Limit { .. })
+        ));
+        assert!(matches!(
+            cfg.to_board(&cmd(knee, JointCommandT::MODE_CURRENT, 1.0)),
+            Err(Reject::Mode(_))
+        ));
+        assert!(matches!(
+            cfg.to_board(&cmd(knee, JointCommandT::MODE_DUTY, f64::NAN)),
+            Err(Reject::Limit { .. })
+        ));
+    }
+
+    #[test]
+    fn a_synthetic_stream_converges_to_the_known_tilt() {
+        // Tilted by roll 0.3, pitch -0.2, with a gyro bias and noise, at 100 Hz for 5 s.
+        let (roll, pitch) = (0.3f64, -0.2f64);
+        let g = [
+            -pitch.sin(),
+            roll.sin() * pitch.cos(),
+            roll.cos() * pitch.cos(),
+        ];
+        let mut att = Attitude::new(0.5);
+        let mut seed = 7u32;
+        let mut noise = || {
+            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            ((seed >> 16) & 0x7fff) as f64 / 16_383.5 - 1.0
+        };
+        for _ in 0..500 {
+            let a = g.map(|x| x + 0.01 * noise());
+            att.update(a, [0.005, -0.004, 0.0], 0.01);
+        }
+        // The bias leaves a steady error of bias × tau (2.5 mrad): within 0.01 rad.
+        assert!((att.rpy[0] - roll).abs() < 0.01, "{:?}", att.rpy);
+        assert!((att.rpy[1] - pitch).abs() < 0.01, "{:?}", att.rpy);
+        let q = att.quaternion();
+        assert!((q.iter().map(|x| x * x).sum::<f64>() - 1.0).abs() < 1e-9);
+        // A level, still board reads identity.
+        let mut level = Attitude::new(0.5);
+        level.update([0.0, 0.0, 1.0], [0.0; 3], 0.01);
+        assert_eq!(level.quaternion(), [1.0, 0.0, 0.0, 0.0]);
+    }
+}

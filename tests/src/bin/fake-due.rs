@@ -1,0 +1,83 @@
+//! `fake-due`: the fake Arduino Due board (the firmware's C codec) on a pseudo-terminal, as a
+//! process, for the end-to-end tests. A symlink at `--link` points to the terminal, as
+//! `/dev/serial/by-id/` names do. SIGUSR1 pulls the cable and plugs it back a second later (a
+//! new terminal behind the same link, a freshly reset board). At SIGINT/SIGTERM it prints
+//! which joints are braked.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use clap::Parser;
+use stride_fakes::due::{DueConfig, DueLevers, FakeDue};
+use stride_serial::{Paced, Port};
+
+/// A fake Due on a pty.
+#[derive(Parser, Debug)]
+struct Cli {
+    /// Where to put the symlink to the terminal.
+    #[arg(long)]
+    link: PathBuf,
+    /// Line baud rate.
+    #[arg(long, default_value_t = 115_200)]
+    baud: u32,
+    /// The board's tilt, roll and pitch in rad.
+    #[arg(long, value_delimiter = ',', default_value = "0,0")]
+    tilt: Vec<f64>,
+}
+
+fn plug(
+    cli: &Cli,
+    levers: &DueLevers,
+) -> anyhow::Result<(
+    Arc<AtomicBool>,
+    std::thread::JoinHandle<FakeDue>,
+    serialport::TTYPort,
+)> {
+    let (dev, host_end) = serialport::TTYPort::pair()?;
+    let path = serialport::SerialPort::name(&host_end).unwrap_or_default();
+    let stop = Arc::new(AtomicBool::new(false));
+    let board = FakeDue::new(DueConfig::default()).spawn(
+        Paced::new(Port::new(dev, cli.baud)),
+        levers.clone(),
+        stop.clone(),
+    );
+    let tmp = cli.link.with_extension("new");
+    let _ = std::fs::remove_file(&tmp);
+    std::os::unix::fs::symlink(&path, &tmp)?;
+    std::fs::rename(&tmp, &cli.link)?;
+    Ok((stop, board, host_end))
+}
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    let levers = DueLevers::default();
+    levers.tilt(cli.tilt[0], *cli.tilt.get(1).unwrap_or(&0.0));
+    let quit = Arc::new(AtomicBool::new(false));
+    let unplug = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, quit.clone())?;
+    signal_hook::flag::register(signal_hook::consts::SIGINT, quit.clone())?;
+    signal_hook::flag::register(signal_hook::consts::SIGUSR1, unplug.clone())?;
+    let (mut stop, mut board, mut host_end) = plug(&cli, &levers)?;
+    while !quit.load(Ordering::Relaxed) {
+        std::thread::sleep(Duration::from_millis(10));
+        if unplug.swap(false, Ordering::Relaxed) {
+            // The cable comes out: the terminal and the link go away.
+            stop.store(true, Ordering::Relaxed);
+            let _ = board.join();
+            let _ = std::fs::remove_file(&cli.link);
+            drop(host_end);
+            std::thread::sleep(Duration::from_secs(1));
+            (stop, board, host_end) = plug(&cli, &levers)?;
+        }
+    }
+    stop.store(true, Ordering::Relaxed);
+    let board = board
+        .join()
+        .map_err(|_| anyhow::anyhow!("the board panicked"))?;
+    let braked: Vec<bool> = (0..6).map(|j| board.braked(j)).collect();
+    println!("braked: {braked:?}");
+    drop(host_end);
+    Ok(())
+}
