@@ -10,6 +10,7 @@ STRIDE_PACKAGES=(
     libglib2.0-dev                    # lcm.pc requires glib's .pc files
     libclang-dev                      # bindgen
     pkg-config gcc libc6-dev          # finding and building against liblcm
+    g++                               # the Due firmware's host syntax check (scripts/firmware)
     iproute2 util-linux               # ip, unshare: the private test network
     python3 python3-pip               # bench tables; the newer-liblcm check in scripts/test
     default-jdk-headless libjchart2d-java # the Java types and lcm-spy (scripts/spy)

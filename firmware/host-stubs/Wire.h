@@ -1,0 +1,17 @@
+/* The Wire (I2C) interface the sketch uses, for the host syntax check. */
+#ifndef WIRE_H_HOST_STUB
+#define WIRE_H_HOST_STUB
+#include <stdint.h>
+#include <stddef.h>
+
+class TwoWireStub {
+  public:
+    void begin(void);
+    void beginTransmission(uint8_t address);
+    size_t write(uint8_t byte);
+    uint8_t endTransmission(bool stop = true);
+    uint8_t requestFrom(uint8_t address, uint8_t count);
+    int read(void);
+};
+extern TwoWireStub Wire;
+#endif
