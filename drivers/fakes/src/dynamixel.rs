@@ -367,6 +367,10 @@ impl FakeChain {
         let dt = self
             .last
             .map_or(0.0, |t| now.saturating_duration_since(t).as_secs_f64());
+        // The servos' physics runs at 1 kHz at most, as their firmware's loop does.
+        if self.last.is_some() && dt < 0.001 {
+            return;
+        }
         self.last = Some(now);
         for s in &mut self.servos {
             let f = self.levers.get(s.id);
