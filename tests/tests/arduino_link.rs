@@ -42,7 +42,10 @@ fn a_leg_board_through_its_link() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("due-left");
     let mut c = Command::new(bin("fake-due"));
-    c.arg("--link").arg(&link).args(["--tilt", "0.2,-0.1"]);
+    // The board spends 1.5 s in its boot loader after each plug-in, as a Due does.
+    c.arg("--link")
+        .arg(&link)
+        .args(["--tilt", "0.2,-0.1", "--boot-ms", "1500"]);
     let board = Proc::spawn(c);
     let t0 = Instant::now();
     while !link.exists() && t0.elapsed() < Duration::from_secs(10) {

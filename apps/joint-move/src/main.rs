@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use clap::Parser;
-use stride_lcmtypes::stride::{JointStateT, JointTrajectoryT};
+use stride_lcmtypes::stride::{JointCommandT, JointStateT, JointTrajectoryT};
 use stride_node::{Node, NodeArgs, Stamper};
 
 /// Move joints with a minimum-jerk profile: reads their positions from the joint states, then
@@ -30,9 +30,17 @@ struct Cli {
     /// Where to publish the trajectory.
     #[arg(long, default_value = "JOINT_TRAJECTORY_LEFT_LEG")]
     trajectory_channel: String,
-    /// Wait for the joints to arrive (within 1 mrad) before exiting, at most this long (s).
+    /// Instead of one trajectory, stream the move as position commands
+    /// (stride.joint_command_t, a row every 10 ms) on this channel: for bridges that take
+    /// set-points, such as stride-dynamixel-bridge and stride-arduino-link.
+    #[arg(long)]
+    command_channel: Option<String>,
+    /// Wait for the joints to arrive (within --tolerance) before exiting, at most this long (s).
     #[arg(long, default_value_t = 5.0)]
     wait: f64,
+    /// How close counts as arrived, rad.
+    #[arg(long, default_value_t = 1e-3)]
+    tolerance: f64,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -91,11 +99,36 @@ fn main() -> anyhow::Result<()> {
         0.01,
         Stamper::new("").stamp(),
     );
-    node.lcm().publish(&cli.trajectory_channel, &traj)?;
-    println!(
-        "stride-joint-move: {} rows to {}",
-        traj.num_rows, cli.trajectory_channel
-    );
+    if let Some(channel) = &cli.command_channel {
+        // The rows as set-points at their times.
+        let mut stamper = Stamper::new("");
+        let t0 = Instant::now();
+        for r in 0..traj.num_rows as usize {
+            let at = t0 + Duration::from_secs_f64(traj.time_from_start[r]);
+            while Instant::now() < at {
+                node.lcm().handle_timeout(at - Instant::now())?;
+            }
+            let cmd = JointCommandT {
+                header: stamper.stamp(),
+                num_joints: names.len() as i32,
+                names: names.clone(),
+                modes: vec![JointCommandT::MODE_POSITION; names.len()],
+                setpoints: traj.positions[r].clone(),
+                velocities: traj.velocities[r].clone(),
+            };
+            node.lcm().publish(channel, &cmd)?;
+        }
+        println!(
+            "stride-joint-move: {} set-points to {channel}",
+            traj.num_rows
+        );
+    } else {
+        node.lcm().publish(&cli.trajectory_channel, &traj)?;
+        println!(
+            "stride-joint-move: {} rows to {}",
+            traj.num_rows, cli.trajectory_channel
+        );
+    }
     let deadline = Instant::now() + Duration::from_secs_f64(cli.wait.max(0.0));
     while Instant::now() < deadline && node.running() {
         node.lcm().handle_timeout(Duration::from_millis(50))?;
@@ -104,7 +137,7 @@ fn main() -> anyhow::Result<()> {
             s.names
                 .iter()
                 .position(|x| x == n)
-                .is_some_and(|i| (s.positions[i] - t).abs() < 1e-3)
+                .is_some_and(|i| (s.positions[i] - t).abs() < cli.tolerance)
         });
         if arrived {
             println!("stride-joint-move: arrived");

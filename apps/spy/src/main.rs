@@ -182,8 +182,9 @@ fn live_list(url: &str, filter: regex::Regex, duration: Option<f64>) -> anyhow::
         if tty {
             text.push_str("\x1b[2J\x1b[H");
         }
+        let w = map.keys().map(String::len).max().unwrap_or(0).max(24);
         text += &format!(
-            "{:<24} {:>8} {:>9} {:>10}  {}   ({})\n",
+            "{:<w$} {:>8} {:>9} {:>10}  {}   ({})\n",
             "channel",
             "events",
             "rate Hz",
@@ -194,7 +195,7 @@ fn live_list(url: &str, filter: regex::Regex, duration: Option<f64>) -> anyhow::
         for (name, live) in map.iter_mut() {
             let secs = elapsed.as_secs_f64();
             text += &format!(
-                "{:<24} {:>8} {:>9.1} {:>10.2}  {}\n",
+                "{:<w$} {:>8} {:>9.1} {:>10.2}  {}\n",
                 name,
                 live.total,
                 live.window_count as f64 / secs,

@@ -111,13 +111,19 @@ pub fn summarize(events: impl IntoIterator<Item = lcm::LogEvent>) -> Vec<Channel
 
 /// Renders a summary as an aligned text table.
 pub fn render_table(rows: &[ChannelSummary]) -> String {
+    let w = rows
+        .iter()
+        .map(|r| r.channel.len())
+        .max()
+        .unwrap_or(0)
+        .max(24);
     let mut out = format!(
-        "{:<24} {:>8} {:>12} {:>9} {:>10}  {}\n",
+        "{:<w$} {:>8} {:>12} {:>9} {:>10}  {}\n",
         "channel", "events", "bytes", "rate Hz", "kB/s", "type"
     );
     for r in rows {
         out += &format!(
-            "{:<24} {:>8} {:>12} {:>9.2} {:>10.2}  {}\n",
+            "{:<w$} {:>8} {:>12} {:>9.2} {:>10.2}  {}\n",
             r.channel,
             r.count,
             r.bytes,
@@ -128,7 +134,7 @@ pub fn render_table(rows: &[ChannelSummary]) -> String {
     }
     let total: u64 = rows.iter().map(|r| r.count).sum();
     let bytes: u64 = rows.iter().map(|r| r.bytes).sum();
-    out += &format!("{:<24} {:>8} {:>12}\n", "total", total, bytes);
+    out += &format!("{:<w$} {:>8} {:>12}\n", "total", total, bytes);
     out
 }
 

@@ -61,6 +61,11 @@ impl<P: serialport::SerialPort> Port<P> {
     pub fn get_mut(&mut self) -> &mut P {
         &mut self.port
     }
+
+    /// Gives the port back.
+    pub fn into_inner(self) -> P {
+        self.port
+    }
 }
 
 impl<P: serialport::SerialPort + Send> Transport for Port<P> {

@@ -1,8 +1,9 @@
 //! `fake-due`: the fake Arduino Due board (the firmware's C codec) on a pseudo-terminal, as a
 //! process, for the end-to-end tests. A symlink at `--link` points to the terminal, as
 //! `/dev/serial/by-id/` names do. SIGUSR1 pulls the cable and plugs it back a second later (a
-//! new terminal behind the same link, a freshly reset board). At SIGINT/SIGTERM it prints
-//! which joints are braked.
+//! new terminal behind the same link, a freshly reset board). Each time it is plugged in, the
+//! board spends `--boot-ms` in its boot loader first, deaf to the link, as a Due does when its
+//! port is opened. At SIGINT/SIGTERM it prints which joints are braked.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -25,6 +26,9 @@ struct Cli {
     /// The board's tilt, roll and pitch in rad.
     #[arg(long, value_delimiter = ',', default_value = "0,0")]
     tilt: Vec<f64>,
+    /// Time in the boot loader after each plug-in, ms.
+    #[arg(long, default_value_t = 0)]
+    boot_ms: u64,
 }
 
 fn plug(
@@ -37,16 +41,24 @@ fn plug(
 )> {
     let (dev, host_end) = serialport::TTYPort::pair()?;
     let path = serialport::SerialPort::name(&host_end).unwrap_or_default();
+    let tmp = cli.link.with_extension("new");
+    let _ = std::fs::remove_file(&tmp);
+    std::os::unix::fs::symlink(&path, &tmp)?;
+    std::fs::rename(&tmp, &cli.link)?;
+    // The boot loader: what the host sends meanwhile is lost.
+    let mut dev = Port::new(dev, cli.baud);
+    let boot_end = std::time::Instant::now() + Duration::from_millis(cli.boot_ms);
+    let mut sink = [0u8; 256];
+    while std::time::Instant::now() < boot_end {
+        let _ = stride_serial::Transport::read_until(&mut dev, &mut sink, boot_end);
+    }
+    let dev = dev.into_inner();
     let stop = Arc::new(AtomicBool::new(false));
     let board = FakeDue::new(DueConfig::default()).spawn(
         Paced::new(Port::new(dev, cli.baud)),
         levers.clone(),
         stop.clone(),
     );
-    let tmp = cli.link.with_extension("new");
-    let _ = std::fs::remove_file(&tmp);
-    std::os::unix::fs::symlink(&path, &tmp)?;
-    std::fs::rename(&tmp, &cli.link)?;
     Ok((stop, board, host_end))
 }
 
