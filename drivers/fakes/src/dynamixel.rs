@@ -25,7 +25,8 @@ pub struct Fault {
     pub silent: bool,
     /// Its temperature climbs above its limit.
     pub overheat: bool,
-    /// It carries more than its maximum torque.
+    /// It carries more than it can: it stalls at its torque limit (AX/MX `torque_limit`, X
+    /// `current_limit`) and reports the overload.
     pub overload: bool,
     /// Extra delay before each answer.
     pub late: Duration,
@@ -193,7 +194,8 @@ impl Servo {
         };
         let step = rpm / 60.0 * counts_per_rev * dt;
         let before = self.position;
-        if on {
+        // Overloaded, the motor gives no more than its torque limit and stalls there.
+        if on && !fault.overload {
             let d = goal - self.position;
             self.position += d.clamp(-step, step);
         }
@@ -213,9 +215,23 @@ impl Servo {
         self.set("present_velocity", v);
         self.set("present_position", self.position.round() as i64);
         self.set("moving", (on && (goal - self.position).abs() > 1.0) as i64);
-        let load = if fault.overload { 1023 } else { 0 };
-        self.set("present_load", load);
-        self.set("present_current", if fault.overload { 1000 } else { 0 });
+        let (torque_limit, current_limit) = (self.get("torque_limit"), self.get("current_limit"));
+        self.set(
+            "present_load",
+            if fault.overload && on {
+                torque_limit
+            } else {
+                0
+            },
+        );
+        self.set(
+            "present_current",
+            if fault.overload && on {
+                current_limit
+            } else {
+                0
+            },
+        );
     }
 
     /// Reads `length` bytes at `address`.
