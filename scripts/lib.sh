@@ -11,6 +11,7 @@ STRIDE_PACKAGES=(
     libclang-dev                      # bindgen
     pkg-config gcc libc6-dev          # finding and building against liblcm
     g++                               # the Due firmware's host syntax check (scripts/firmware)
+    gcc-avr avr-libc                  # the link codec built for the ATmega32U4 (scripts/firmware)
     iproute2 util-linux               # ip, unshare: the private test network
     python3 python3-pip               # bench tables; the newer-liblcm check in scripts/test
     default-jdk-headless libjchart2d-java # the Java types and lcm-spy (scripts/spy)

@@ -80,7 +80,7 @@ static int finish(stride_link_decoder *d, stride_link_frame *f) {
     if (n < 5 || raw[2] > STRIDE_LINK_MAX_PAYLOAD || (size_t)raw[2] + 5 != n) {
         return -1;
     }
-    if (stride_link_crc16(raw, n - 2, 0xFFFF) != (uint16_t)(raw[n - 2] | raw[n - 1] << 8)) {
+    if (stride_link_crc16(raw, n - 2, 0xFFFF) != (uint16_t)(raw[n - 2] | (uint16_t)raw[n - 1] << 8)) {
         return -1;
     }
     f->type = raw[0];
@@ -153,7 +153,7 @@ int stride_link_get_u16(const stride_link_frame *f, size_t *at, uint16_t *v) {
     if (*at + 2 > f->len) {
         return -1;
     }
-    *v = (uint16_t)(f->payload[*at] | f->payload[*at + 1] << 8);
+    *v = (uint16_t)(f->payload[*at] | (uint16_t)f->payload[*at + 1] << 8);
     *at += 2;
     return 0;
 }
