@@ -1,0 +1,567 @@
+//! Archie's path planner (seed 000, §2.6): obstacles are circles grown by half the hip width,
+//! and the path runs along their tangents.
+//!
+//! - [`plan_tree`], faithful: the thesis's binary tree. From each open leaf, the nearest
+//!   obstacle blocking the way to the goal gives two children, the intersections of the
+//!   leaf's tangents with the goal's tangents on each side; children inside an obstacle are
+//!   dropped; the search ends at the first level where a leaf sees the goal. Its known defect
+//!   stays: a waypoint is where two tangents meet, which overshoots when they are nearly
+//!   parallel (the case-9 detour). Where the thesis is silent, it drops a child the leaf
+//!   cannot reach without entering another obstacle.
+//! - [`plan_exact`], improved: the exact shortest path among the same circles, on the tangent
+//!   graph (tangents from start and goal, bitangents between circles, arcs along them), by
+//!   Dijkstra; arcs become waypoints on a polygon circumscribed about the circle, so the path
+//!   never enters it and is at most a fraction of a percent longer than the exact optimum.
+
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+use std::time::{Duration, Instant};
+
+use crate::geom::{line_intersection, path_length, v2, wrap, Circle, EPS, V2};
+use crate::plan::{Plan, Stats, Status};
+
+/// Settings of Archie's planner.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Params {
+    /// Added to every obstacle's radius: half the hip width, m.
+    pub inflation: f64,
+    /// The tree's depth limit (faithful mode).
+    pub max_depth: u32,
+    /// Wall-time budget.
+    pub budget: Duration,
+    /// Largest angle of circle a waypoint of an arc covers (improved mode), rad.
+    pub arc_step: f64,
+}
+
+impl Default for Params {
+    /// The thesis's settings: obstacles grown by 0.1 m, half the hip width.
+    fn default() -> Self {
+        Params {
+            inflation: 0.1,
+            max_depth: 16,
+            budget: Duration::from_millis(100),
+            arc_step: 10f64.to_radians(),
+        }
+    }
+}
+
+impl Params {
+    /// Improved settings: obstacles grown by the farthest reach of a footprint from the path
+    /// (a foot's box corner lies 0.15 m to the side, half the stance and half the foot's
+    /// width, and up to 0.15 m ahead, its centre's offset and half its length: 0.212 m in
+    /// all), so that no footprint along a path outside the grown obstacles touches one. With
+    /// the thesis's 0.1 m, the outer half of a foot beside an obstacle lies on it.
+    pub fn improved() -> Params {
+        Params {
+            inflation: 0.215,
+            ..Params::default()
+        }
+    }
+}
+
+/// One node of the faithful tree.
+#[derive(Debug, Clone)]
+struct Node {
+    p: V2,
+    parent: Option<usize>,
+    level: u32,
+    /// The thesis's id: `x_i = x_{i-1} · l_{i-1} + k` (k = 0 left, 1 right).
+    id: u64,
+    len: f64,
+}
+
+/// The thesis's id of a child (k = 0 left, 1 right) of a node with `id` at `level`.
+pub fn child_id(id: u64, level: u32, k: u64) -> u64 {
+    id * level as u64 + k
+}
+
+/// The avoidance waypoints around `c` for the way from `from` to `goal`: (left, right), each the
+/// intersection of a tangent from `from` with the tangent from `goal` on the same side.
+pub fn avoidance_waypoints(from: V2, goal: V2, c: &Circle) -> [Option<V2>; 2] {
+    let (Some(tf), Some(tg)) = (c.tangent_points(from), c.tangent_points(goal)) else {
+        return [None, None];
+    };
+    let dir = goal - from;
+    // Tangent points on the left of from→goal, and on the right.
+    let side = |pts: [V2; 2], left: bool| {
+        let s0 = dir.cross(pts[0] - from);
+        if (s0 > 0.0) == left {
+            pts[0]
+        } else {
+            pts[1]
+        }
+    };
+    let pick = |left: bool| line_intersection(from, side(tf, left), goal, side(tg, left));
+    [pick(true), pick(false)]
+}
+
+fn check_ends(start: V2, goal: V2, circles: &[Circle], stats: Stats) -> Result<(), Box<Plan>> {
+    if circles.iter().any(|c| c.contains(start)) {
+        return Err(Box::new(Plan::failed(
+            Status::StartInCollision,
+            "the start is inside an inflated obstacle",
+            stats,
+        )));
+    }
+    if circles.iter().any(|c| c.contains(goal)) {
+        return Err(Box::new(Plan::failed(
+            Status::GoalInCollision,
+            "the goal is inside an inflated obstacle",
+            stats,
+        )));
+    }
+    Ok(())
+}
+
+/// The obstacles grown by the inflation.
+pub fn inflate(obstacles: &[Circle], inflation: f64) -> Vec<Circle> {
+    obstacles
+        .iter()
+        .map(|c| Circle {
+            c: c.c,
+            r: c.r + inflation,
+        })
+        .collect()
+}
+
+/// The thesis's tangent binary tree (faithful). Returns the plan and, for debugging, the ids
+/// of the waypoints of the path (root = 1).
+pub fn plan_tree(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> (Plan, Vec<u64>) {
+    let t0 = Instant::now();
+    let circles = inflate(obstacles, p.inflation);
+    let mut stats = Stats {
+        prepare: t0.elapsed(),
+        ..Stats::default()
+    };
+    if let Err(plan) = check_ends(start, goal, &circles, stats) {
+        return (*plan, Vec::new());
+    }
+    let t1 = Instant::now();
+    let mut nodes = vec![Node {
+        p: start,
+        parent: None,
+        level: 1,
+        id: 1,
+        len: 0.0,
+    }];
+    let mut open = vec![0usize];
+    let mut done = None;
+    while !open.is_empty() {
+        // Leaves that see the goal end the search; the shortest of them wins.
+        let mut best: Option<(f64, usize)> = None;
+        for &i in &open {
+            stats.collision_queries += circles.len() as u64;
+            if !circles.iter().any(|c| c.blocks(nodes[i].p, goal)) {
+                let total = nodes[i].len + nodes[i].p.dist(goal);
+                if best.is_none_or(|(b, _)| total < b) {
+                    best = Some((total, i));
+                }
+            }
+        }
+        if let Some((_, i)) = best {
+            done = Some(i);
+            break;
+        }
+        if nodes[open[0]].level >= p.max_depth || t1.elapsed() > p.budget {
+            break;
+        }
+        let mut next = Vec::new();
+        for &i in &open {
+            stats.expansions += 1;
+            let leaf = nodes[i].clone();
+            // The blocking obstacle nearest to the leaf.
+            let blocking = circles
+                .iter()
+                .filter(|c| c.blocks(leaf.p, goal))
+                .min_by(|a, b| leaf.p.dist(a.c).total_cmp(&leaf.p.dist(b.c)));
+            let Some(c) = blocking else { continue };
+            for (k, w) in avoidance_waypoints(leaf.p, goal, c).into_iter().enumerate() {
+                let Some(w) = w else { continue };
+                stats.generated += 1;
+                stats.collision_queries += circles.len() as u64;
+                // A child inside an obstacle is dropped (thesis); so is one that the leaf cannot
+                // reach in a straight line without entering another obstacle (the thesis never
+                // says it checks this, but its paths do not cross obstacles).
+                if circles.iter().any(|c| c.contains(w) || c.blocks(leaf.p, w)) {
+                    continue;
+                }
+                next.push(nodes.len());
+                nodes.push(Node {
+                    p: w,
+                    parent: Some(i),
+                    level: leaf.level + 1,
+                    id: child_id(leaf.id, leaf.level, k as u64),
+                    len: leaf.len + leaf.p.dist(w),
+                });
+            }
+        }
+        open = next;
+    }
+    stats.search = t1.elapsed();
+    let Some(leaf) = done else {
+        let why = if open.is_empty() {
+            "every branch of the tree ended inside an obstacle"
+        } else {
+            "the tree reached its depth or time limit"
+        };
+        return (Plan::failed(Status::NoPath, why, stats), Vec::new());
+    };
+    let mut path = vec![goal];
+    let mut ids = Vec::new();
+    let mut at = Some(leaf);
+    while let Some(i) = at {
+        path.push(nodes[i].p);
+        ids.push(nodes[i].id);
+        at = nodes[i].parent;
+    }
+    path.reverse();
+    ids.reverse();
+    let cost = path_length(&path);
+    (
+        Plan {
+            status: Status::Ok,
+            detail: String::new(),
+            path,
+            cost,
+            steps: Vec::new(),
+            stats,
+        },
+        ids,
+    )
+}
+
+/// A point of the tangent graph: the start, the goal, or a tangent point on a circle.
+#[derive(Debug, Clone, Copy)]
+struct GNode {
+    p: V2,
+    /// The circle it lies on and its angle there.
+    on: Option<(usize, f64)>,
+}
+
+/// How an edge of the graph runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Way {
+    Straight,
+    /// Along circle `i`, counter-clockwise (true) or clockwise.
+    Arc(usize, bool),
+}
+
+#[derive(PartialEq)]
+struct Entry(f64, usize);
+
+impl Eq for Entry {}
+
+impl Ord for Entry {
+    fn cmp(&self, o: &Self) -> Ordering {
+        o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
+    }
+}
+
+impl PartialOrd for Entry {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+/// The angular interval of circle `ci`'s rim that circle `cj` covers, as (centre angle, half
+/// width): `None` when they do not overlap or `cj` lies inside `ci`, `(0, π)` when `ci` lies
+/// inside `cj`.
+fn covered(ci: &Circle, cj: &Circle) -> Option<(f64, f64)> {
+    let d = ci.c.dist(cj.c);
+    if d >= ci.r + cj.r {
+        return None;
+    }
+    if d + ci.r <= cj.r {
+        return Some((0.0, std::f64::consts::PI));
+    }
+    if d + cj.r <= ci.r {
+        return None;
+    }
+    let cosa = (ci.r * ci.r + d * d - cj.r * cj.r) / (2.0 * ci.r * d);
+    Some(((cj.c - ci.c).angle(), cosa.clamp(-1.0, 1.0).acos()))
+}
+
+/// True when the arc of circle `i` from angle `a`, going `ccw` (or clockwise) by `sweep`
+/// radians, passes inside another circle.
+fn arc_blocked(circles: &[Circle], i: usize, a: f64, sweep: f64, ccw: bool) -> bool {
+    circles.iter().enumerate().any(|(j, cj)| {
+        if j == i {
+            return false;
+        }
+        let Some((mid, half)) = covered(&circles[i], cj) else {
+            return false;
+        };
+        if half >= std::f64::consts::PI - EPS {
+            return true;
+        }
+        // The arc as [0, sweep] from a in its direction; the covered interval likewise.
+        let rel = |ang: f64| {
+            let d = if ccw { ang - a } else { a - ang };
+            d.rem_euclid(std::f64::consts::TAU)
+        };
+        let lo = rel(mid - half * if ccw { 1.0 } else { -1.0 });
+        let width = 2.0 * half;
+        // Overlap of [0, sweep] with [lo, lo + width] on the circle (open intervals).
+        lo + EPS < sweep || lo + width > std::f64::consts::TAU + EPS
+    })
+}
+
+/// The exact shortest path from `start` to `goal` among the circles (already inflated), as
+/// the graph's node sequence and edge kinds, with its length.
+fn tangent_graph_path(
+    start: V2,
+    goal: V2,
+    circles: &[Circle],
+    stats: &mut Stats,
+) -> Option<(Vec<GNode>, Vec<Way>, f64)> {
+    let mut nodes = vec![GNode { p: start, on: None }, GNode { p: goal, on: None }];
+    let mut edges: Vec<Vec<(usize, f64, Way)>> = vec![Vec::new(), Vec::new()];
+    let free = |a: V2, b: V2, stats: &mut Stats| {
+        stats.collision_queries += circles.len() as u64;
+        !circles.iter().any(|c| c.blocks(a, b))
+    };
+    let add_node =
+        |nodes: &mut Vec<GNode>, edges: &mut Vec<Vec<(usize, f64, Way)>>, i: usize, p: V2| {
+            nodes.push(GNode {
+                p,
+                on: Some((i, (p - circles[i].c).angle())),
+            });
+            edges.push(Vec::new());
+            nodes.len() - 1
+        };
+    let inside_other = |p: V2, skip: &[usize]| {
+        circles
+            .iter()
+            .enumerate()
+            .any(|(k, c)| !skip.contains(&k) && c.contains(p))
+    };
+    // Start to goal.
+    if free(start, goal, stats) {
+        let d = start.dist(goal);
+        edges[0].push((1, d, Way::Straight));
+    }
+    // Start and goal to every circle.
+    for (k, endpoint) in [(0usize, start), (1usize, goal)] {
+        for (i, c) in circles.iter().enumerate() {
+            let Some(pts) = c.tangent_points(endpoint) else {
+                continue;
+            };
+            for t in pts {
+                if inside_other(t, &[i]) || !free(endpoint, t, stats) {
+                    continue;
+                }
+                let n = add_node(&mut nodes, &mut edges, i, t);
+                let d = endpoint.dist(t);
+                edges[k].push((n, d, Way::Straight));
+                edges[n].push((k, d, Way::Straight));
+            }
+        }
+    }
+    // Bitangents between circles.
+    for i in 0..circles.len() {
+        for j in i + 1..circles.len() {
+            let (a, b) = (circles[i], circles[j]);
+            let d = a.c.dist(b.c);
+            if d < EPS {
+                continue;
+            }
+            let base = (b.c - a.c).angle();
+            let mut pairs = Vec::new();
+            // Outer tangents: normals at base ± acos((ra - rb)/d).
+            if d > (a.r - b.r).abs() {
+                let t = ((a.r - b.r) / d).acos();
+                for s in [1.0, -1.0] {
+                    let n = V2::polar(base + s * t);
+                    pairs.push((a.c + n * a.r, b.c + n * b.r));
+                }
+            }
+            // Inner tangents: only between disjoint circles.
+            if d > a.r + b.r {
+                let t = ((a.r + b.r) / d).acos();
+                for s in [1.0, -1.0] {
+                    let n = V2::polar(base + s * t);
+                    pairs.push((a.c + n * a.r, b.c - n * b.r));
+                }
+            }
+            for (pa, pb) in pairs {
+                if inside_other(pa, &[i, j]) || inside_other(pb, &[i, j]) || !free(pa, pb, stats) {
+                    continue;
+                }
+                let na = add_node(&mut nodes, &mut edges, i, pa);
+                let nb = add_node(&mut nodes, &mut edges, j, pb);
+                let len = pa.dist(pb);
+                edges[na].push((nb, len, Way::Straight));
+                edges[nb].push((na, len, Way::Straight));
+            }
+        }
+    }
+    // Arcs between angularly consecutive points of each circle.
+    for (i, c) in circles.iter().enumerate() {
+        let mut on: Vec<(f64, usize)> = nodes
+            .iter()
+            .enumerate()
+            .filter_map(|(n, g)| g.on.filter(|(ci, _)| *ci == i).map(|(_, a)| (a, n)))
+            .collect();
+        on.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let m = on.len();
+        if m < 2 {
+            continue;
+        }
+        for k in 0..m {
+            let (a0, n0) = on[k];
+            let (a1, n1) = on[(k + 1) % m];
+            let sweep = (a1 - a0).rem_euclid(std::f64::consts::TAU);
+            if !(1e-9..=std::f64::consts::TAU - 1e-9).contains(&sweep) {
+                // The same point, reached by two tangents: joined at no cost.
+                edges[n0].push((n1, 0.0, Way::Straight));
+                edges[n1].push((n0, 0.0, Way::Straight));
+                continue;
+            }
+            if arc_blocked(circles, i, a0, sweep, true) {
+                continue;
+            }
+            let len = sweep * c.r;
+            edges[n0].push((n1, len, Way::Arc(i, true)));
+            edges[n1].push((n0, len, Way::Arc(i, false)));
+        }
+    }
+    // Dijkstra from the start to the goal.
+    let n = nodes.len();
+    let mut dist = vec![f64::INFINITY; n];
+    let mut prev: Vec<Option<(usize, Way)>> = vec![None; n];
+    let mut heap = BinaryHeap::new();
+    dist[0] = 0.0;
+    heap.push(Entry(0.0, 0));
+    while let Some(Entry(d, u)) = heap.pop() {
+        if d > dist[u] {
+            continue;
+        }
+        stats.expansions += 1;
+        if u == 1 {
+            break;
+        }
+        for &(v, w, way) in &edges[u] {
+            stats.generated += 1;
+            if d + w < dist[v] {
+                dist[v] = d + w;
+                prev[v] = Some((u, way));
+                heap.push(Entry(d + w, v));
+            }
+        }
+    }
+    if !dist[1].is_finite() {
+        return None;
+    }
+    let mut seq = vec![1];
+    let mut ways = Vec::new();
+    let mut at = 1;
+    while let Some((p, way)) = prev[at] {
+        seq.push(p);
+        ways.push(way);
+        at = p;
+    }
+    seq.reverse();
+    ways.reverse();
+    Some((seq.into_iter().map(|k| nodes[k]).collect(), ways, dist[1]))
+}
+
+/// The exact shortest path among the inflated circles (improved mode). `cost` is the path's
+/// length as returned (waypoints outside the circles); [`exact_length`] gives the optimum.
+pub fn plan_exact(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> Plan {
+    let t0 = Instant::now();
+    let circles = inflate(obstacles, p.inflation);
+    let mut stats = Stats::default();
+    if let Err(plan) = check_ends(start, goal, &circles, stats) {
+        return *plan;
+    }
+    let Some((seq, ways, _)) = tangent_graph_path(start, goal, &circles, &mut stats) else {
+        stats.search = t0.elapsed();
+        return Plan::failed(
+            Status::NoPath,
+            "the goal cannot be reached around the obstacles",
+            stats,
+        );
+    };
+    // Straight parts as they are; an arc as the vertices of a polygon circumscribed about the
+    // circle (its sides are tangent to the circle, the first and last along the straight parts
+    // that arrive and leave), so the path stays outside it.
+    let mut path = vec![seq[0].p];
+    for (k, way) in ways.iter().enumerate() {
+        let (a, b) = (seq[k], seq[k + 1]);
+        if let Way::Arc(i, ccw) = *way {
+            let c = circles[i];
+            let (a0, a1) = (a.on.expect("on a circle").1, b.on.expect("on a circle").1);
+            let sweep = if ccw {
+                (a1 - a0).rem_euclid(std::f64::consts::TAU)
+            } else {
+                -(a0 - a1).rem_euclid(std::f64::consts::TAU)
+            };
+            let m = (sweep.abs() / p.arc_step).ceil().max(1.0) as usize;
+            let step = sweep / m as f64;
+            let r = c.r / (step / 2.0).cos();
+            for s in 0..m {
+                path.push(c.c + V2::polar(a0 + step * (s as f64 + 0.5)) * r);
+            }
+        }
+        path.push(b.p);
+    }
+    // Collinear points (the tangent points between straight parts and arcs) add nothing.
+    let path = simplify(&path);
+    stats.search = t0.elapsed();
+    let cost = path_length(&path);
+    Plan {
+        status: Status::Ok,
+        detail: String::new(),
+        path,
+        cost,
+        steps: Vec::new(),
+        stats,
+    }
+}
+
+/// Drops points that lie on the segment between their neighbours.
+fn simplify(path: &[V2]) -> Vec<V2> {
+    let mut out: Vec<V2> = Vec::with_capacity(path.len());
+    for &p in path {
+        if out.last().is_some_and(|q| q.dist(p) < 1e-9) {
+            continue;
+        }
+        while out.len() >= 2 {
+            let (a, b) = (out[out.len() - 2], out[out.len() - 1]);
+            if ((b - a).cross(p - b)).abs() < 1e-9 && (b - a).dot(p - b) >= 0.0 {
+                out.pop();
+            } else {
+                break;
+            }
+        }
+        out.push(p);
+    }
+    out
+}
+
+/// The length of the exact shortest path among the inflated circles (arcs included), or
+/// `None` when there is none.
+pub fn exact_length(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> Option<f64> {
+    let circles = inflate(obstacles, p.inflation);
+    tangent_graph_path(start, goal, &circles, &mut Stats::default()).map(|(_, _, d)| d)
+}
+
+/// Headings of the path's segments: the heading at each waypoint is that of the segment that
+/// ends there (the start keeps `start_yaw`).
+pub fn headings(path: &[V2], start_yaw: f64) -> Vec<f64> {
+    let mut out = vec![start_yaw];
+    for w in path.windows(2) {
+        out.push((w[1] - w[0]).angle());
+    }
+    out
+}
+
+/// Wraps an angle difference (used by the footsteps).
+pub fn heading_change(from: f64, to: f64) -> f64 {
+    wrap(to - from)
+}
+
+/// `v2`, for the scene builders of the tests.
+pub fn at(x: f64, y: f64) -> V2 {
+    v2(x, y)
+}

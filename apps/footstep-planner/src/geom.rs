@@ -1,0 +1,179 @@
+//! Plane geometry for the path planners: points, circles, segment distances, tangents.
+
+use std::ops::{Add, Mul, Sub};
+
+/// A point or vector in the plane, metres.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Deserialize, serde::Serialize)]
+pub struct V2 {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+}
+
+/// `V2 { x, y }`.
+pub const fn v2(x: f64, y: f64) -> V2 {
+    V2 { x, y }
+}
+
+impl Add for V2 {
+    type Output = V2;
+    fn add(self, o: V2) -> V2 {
+        v2(self.x + o.x, self.y + o.y)
+    }
+}
+
+impl Sub for V2 {
+    type Output = V2;
+    fn sub(self, o: V2) -> V2 {
+        v2(self.x - o.x, self.y - o.y)
+    }
+}
+
+impl Mul<f64> for V2 {
+    type Output = V2;
+    fn mul(self, k: f64) -> V2 {
+        v2(self.x * k, self.y * k)
+    }
+}
+
+impl V2 {
+    /// Dot product.
+    pub fn dot(self, o: V2) -> f64 {
+        self.x * o.x + self.y * o.y
+    }
+
+    /// The z of the cross product (positive: `o` is to the left of `self`).
+    pub fn cross(self, o: V2) -> f64 {
+        self.x * o.y - self.y * o.x
+    }
+
+    /// Length.
+    pub fn norm(self) -> f64 {
+        self.x.hypot(self.y)
+    }
+
+    /// Distance to `o`.
+    pub fn dist(self, o: V2) -> f64 {
+        (self - o).norm()
+    }
+
+    /// Angle from the x axis, rad.
+    pub fn angle(self) -> f64 {
+        self.y.atan2(self.x)
+    }
+
+    /// The unit vector at angle `a`.
+    pub fn polar(a: f64) -> V2 {
+        v2(a.cos(), a.sin())
+    }
+}
+
+/// A circle (an obstacle, usually already inflated).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Circle {
+    /// Centre.
+    pub c: V2,
+    /// Radius.
+    pub r: f64,
+}
+
+/// Distance from `p` to the segment `a`–`b`.
+pub fn point_segment_distance(p: V2, a: V2, b: V2) -> f64 {
+    let ab = b - a;
+    let l2 = ab.dot(ab);
+    if l2 == 0.0 {
+        return p.dist(a);
+    }
+    let t = ((p - a).dot(ab) / l2).clamp(0.0, 1.0);
+    p.dist(a + ab * t)
+}
+
+/// Tolerance of the geometric tests, m: a path tangent to a circle touches it, it does not
+/// enter it.
+pub const EPS: f64 = 1e-9;
+
+impl Circle {
+    /// True when `p` is strictly inside.
+    pub fn contains(&self, p: V2) -> bool {
+        p.dist(self.c) < self.r - EPS
+    }
+
+    /// True when the segment `a`–`b` enters the circle's interior.
+    pub fn blocks(&self, a: V2, b: V2) -> bool {
+        point_segment_distance(self.c, a, b) < self.r - EPS
+    }
+
+    /// The two tangent points seen from `p` (left one first, as seen from `p` looking at the
+    /// centre), or `None` when `p` is not outside.
+    pub fn tangent_points(&self, p: V2) -> Option<[V2; 2]> {
+        let d = p.dist(self.c);
+        if d <= self.r {
+            return None;
+        }
+        let phi = (p - self.c).angle();
+        let beta = (self.r / d).acos();
+        // phi points from c to p: seen from p towards c, phi - beta lies on the left.
+        Some([
+            self.c + V2::polar(phi - beta) * self.r,
+            self.c + V2::polar(phi + beta) * self.r,
+        ])
+    }
+}
+
+/// The intersection of the line through `a1`, `a2` with the line through `b1`, `b2`; `None`
+/// when they are parallel.
+pub fn line_intersection(a1: V2, a2: V2, b1: V2, b2: V2) -> Option<V2> {
+    let (da, db) = (a2 - a1, b2 - b1);
+    let den = da.cross(db);
+    if den.abs() < 1e-12 {
+        return None;
+    }
+    let t = (b1 - a1).cross(db) / den;
+    Some(a1 + da * t)
+}
+
+/// Wraps an angle to (-π, π].
+pub fn wrap(a: f64) -> f64 {
+    let mut a = a % std::f64::consts::TAU;
+    if a <= -std::f64::consts::PI {
+        a += std::f64::consts::TAU;
+    } else if a > std::f64::consts::PI {
+        a -= std::f64::consts::TAU;
+    }
+    a
+}
+
+/// Length of a polyline.
+pub fn path_length(p: &[V2]) -> f64 {
+    p.windows(2).map(|w| w[0].dist(w[1])).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tangents_and_distances() {
+        let c = Circle {
+            c: v2(2.0, 0.0),
+            r: 0.6,
+        };
+        let [left, right] = c.tangent_points(v2(0.0, 0.0)).unwrap();
+        assert!(
+            (left.x - 1.82).abs() < 1e-3 && (left.y - 0.5724).abs() < 1e-4,
+            "{left:?}"
+        );
+        assert!((right.y + 0.5724).abs() < 1e-4, "{right:?}");
+        assert!(c.blocks(v2(0.0, 0.0), v2(4.0, 0.0)));
+        assert!(
+            !c.blocks(v2(0.0, 0.6), v2(4.0, 0.6)),
+            "tangent is not inside"
+        );
+        assert!(c.tangent_points(v2(2.1, 0.0)).is_none());
+        let x = line_intersection(v2(0.0, 0.0), v2(1.0, 1.0), v2(0.0, 2.0), v2(2.0, 0.0)).unwrap();
+        assert!((x.x - 1.0).abs() < 1e-12 && (x.y - 1.0).abs() < 1e-12);
+        assert!((wrap(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
+        assert!((wrap(-1.5 * std::f64::consts::PI) - 0.5 * std::f64::consts::PI).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,238 @@
+//! Footsteps along a path of waypoints (seed 000, §2.7): the centre of mass advances along the
+//! path, the feet alternate beside it.
+//!
+//! - [`faithful`]: the thesis's `footStepPoseComputation`, to the letter: 0.3 m steps with the
+//!   remainder on the last one, turns on the spot in two or three steps whatever their size,
+//!   a closing step after every segment, and (behind a flag) its first-foot bug.
+//! - [`improved`]: the first foot where it is, heading changes wrapped, segments cut into
+//!   equal steps (no distance lost, none overlong), small heading changes taken while walking,
+//!   large ones on the spot in steps of at most `max_yaw`.
+
+use crate::geom::{v2, wrap, Circle, V2};
+use crate::plan::Foot;
+
+/// Step geometry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepParams {
+    /// Longest advance of the centre of mass per step, m (thesis: 0.3).
+    pub max_step: f64,
+    /// Lateral distance from the centre of mass to a foot, m (thesis: 0.1).
+    pub half_stance: f64,
+    /// Heading changes below this are ignored, rad (thesis: 0.01).
+    pub turn_threshold: f64,
+    /// The foot's centre lies this far ahead of its reference point, m (thesis: 0.0375).
+    pub foot_offset: f64,
+    /// Largest heading change between two footholds (improved), rad.
+    pub max_yaw: f64,
+}
+
+impl Default for StepParams {
+    fn default() -> Self {
+        StepParams {
+            max_step: 0.3,
+            half_stance: 0.1,
+            turn_threshold: 0.01,
+            foot_offset: 0.0375,
+            max_yaw: 20f64.to_radians(),
+        }
+    }
+}
+
+/// The footprint's size: 0.225 m long, 0.1 m wide.
+pub const FOOT: (f64, f64) = (0.225, 0.1);
+
+/// One walk parameter: COM advance, lateral offset, heading.
+type Walk = (f64, f64, f64);
+
+/// The feet of a walk-parameter sequence from `hip0` (odd indices are left feet).
+fn feet(hip0: V2, s: &[Walk]) -> Vec<Foot> {
+    let mut hip = hip0;
+    let mut out = Vec::new();
+    for (jj, &(sx, sy, th)) in s.iter().enumerate().skip(1) {
+        hip = hip + v2(th.cos(), th.sin()) * sx;
+        let sign = if jj % 2 == 1 { -1.0 } else { 1.0 }; // (-1)^jj
+        out.push(Foot {
+            p: hip + v2(sign * th.sin() * sy, -sign * th.cos() * sy),
+            yaw: th,
+            left: jj % 2 == 1,
+        });
+    }
+    out
+}
+
+/// The thesis's footsteps for `waypoints` with the headings `dirs` (the heading of the segment
+/// ending at each waypoint). `first_foot_bug` keeps the thesis's `px = py + x` for the first
+/// foot.
+pub fn faithful(waypoints: &[V2], dirs: &[f64], p: &StepParams, first_foot_bug: bool) -> Vec<Foot> {
+    let (mx, my) = (p.max_step, p.half_stance);
+    let w0 = waypoints[0];
+    let py = -my;
+    let px = if first_foot_bug { py + w0.x } else { w0.x };
+    let mut out = vec![Foot {
+        p: v2(px, py + w0.y),
+        yaw: 0.0,
+        left: false,
+    }];
+    let mut s: Vec<Walk> = vec![(0.0, 0.0, 0.0), (0.0, my, 0.0)];
+    for ii in 0..waypoints.len().saturating_sub(1) {
+        let d = waypoints[ii].dist(waypoints[ii + 1]);
+        let num = (d / mx).round() as usize;
+        let th = dirs[ii + 1];
+        let head_diff = th - dirs[ii]; // not wrapped, as in the thesis
+        let nb = s.len();
+        if head_diff.abs() > p.turn_threshold {
+            if (head_diff > 0.0 && nb.is_multiple_of(2))
+                || (head_diff < 0.0 && !nb.is_multiple_of(2))
+            {
+                s.extend([(0.0, my, dirs[ii]), (0.0, my, th), (0.0, my, th)]);
+            } else {
+                s.extend([(0.0, my, th), (0.0, my, th)]);
+            }
+        }
+        let rest = d / mx - num as f64;
+        for g in 0..num {
+            let sx = if g + 1 == num { mx + rest * mx } else { mx };
+            s.push((sx, my, th));
+        }
+        s.push((0.0, my, th));
+    }
+    out.extend(feet(w0, &s));
+    out
+}
+
+/// Improved footsteps along `waypoints`, starting with the feet side by side at `start_yaw`
+/// (right foot first in the list, then the steps).
+pub fn improved(waypoints: &[V2], start_yaw: f64, p: &StepParams) -> Vec<Foot> {
+    let my = p.half_stance;
+    let w0 = waypoints[0];
+    let mut out = vec![Foot {
+        p: w0 + v2(start_yaw.sin() * my, -start_yaw.cos() * my),
+        yaw: start_yaw,
+        left: false,
+    }];
+    let mut s: Vec<Walk> = vec![(0.0, 0.0, start_yaw), (0.0, my, start_yaw)];
+    let mut heading = start_yaw;
+    // The foot that steps next: odd indices of s are left feet.
+    let left_next = |s: &Vec<Walk>| s.len() % 2 == 1;
+    for ii in 0..waypoints.len().saturating_sub(1) {
+        let seg = waypoints[ii + 1] - waypoints[ii];
+        let d = seg.norm();
+        if d < 1e-9 {
+            continue;
+        }
+        let th = seg.angle();
+        let turn = wrap(th - heading);
+        if turn.abs() > p.max_yaw {
+            // Stop (feet together), then turn on the spot, the foot on the turn's side leading,
+            // in equal increments of at most max_yaw.
+            if s.last().is_some_and(|w| w.0 != 0.0) {
+                s.push((0.0, my, heading));
+            }
+            if (turn > 0.0) != left_next(&s) {
+                s.push((0.0, my, heading));
+            }
+            let k = (turn.abs() / p.max_yaw).ceil() as usize;
+            for i in 1..=k {
+                let h = heading + turn * i as f64 / k as f64;
+                s.extend([(0.0, my, h), (0.0, my, h)]);
+            }
+        }
+        // Equal steps; a small heading change is taken with the first of them.
+        let n = (d / p.max_step).ceil().max(1.0) as usize;
+        for _ in 0..n {
+            s.push((d / n as f64, my, th));
+        }
+        heading = th;
+    }
+    // Feet together at the end.
+    s.push((0.0, my, heading));
+    out.extend(feet(w0, &s));
+    out
+}
+
+/// True when the footprint of `f` (the [`FOOT`] box around its centre) overlaps circle `c`.
+pub fn footprint_hits(f: &Foot, offset: f64, c: &Circle) -> bool {
+    let dir = v2(f.yaw.cos(), f.yaw.sin());
+    let centre = f.p + dir * offset;
+    let rel = c.c - centre;
+    let (lx, ly) = (rel.dot(dir), rel.cross(dir).abs());
+    let dx = (lx.abs() - FOOT.0 / 2.0).max(0.0);
+    let dy = (ly - FOOT.1 / 2.0).max(0.0);
+    dx.hypot(dy) < c.r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn near(f: &Foot, x: f64, y: f64, yaw_deg: f64) -> bool {
+        (f.p.x - x).abs() < 1e-4
+            && (f.p.y - y).abs() < 1e-4
+            && (f.yaw.to_degrees() - yaw_deg).abs() < 1e-6
+    }
+
+    #[test]
+    #[allow(clippy::approx_constant)] // the golden vectors as printed, to four places
+    fn thesis_golden_vectors() {
+        let p = StepParams::default();
+        let f = faithful(&[v2(0.0, 0.0), v2(1.0, 0.0)], &[0.0, 0.0], &p, true);
+        let want = [
+            (-0.1, -0.1),
+            (0.0, 0.1),
+            (0.3, -0.1),
+            (0.6, 0.1),
+            (1.0, -0.1),
+            (1.0, 0.1),
+        ];
+        assert_eq!(f.len(), want.len());
+        for (k, (x, y)) in want.iter().enumerate() {
+            assert!(near(&f[k], *x, *y, 0.0), "#{k}: {:?}", f[k]);
+        }
+        assert!(f[1].left && !f[2].left);
+        let q = std::f64::consts::FRAC_PI_4;
+        let f = faithful(&[v2(0.0, 0.0), v2(1.0, 1.0)], &[0.0, q], &p, true);
+        let want = [
+            (-0.1, -0.1, 0.0),
+            (0.0, 0.1, 0.0),
+            (0.0, -0.1, 0.0),
+            (-0.0707, 0.0707, 45.0),
+            (0.0707, -0.0707, 45.0),
+            (0.1414, 0.2828, 45.0),
+            (0.4950, 0.3536, 45.0),
+            (0.5657, 0.7071, 45.0),
+            (0.9192, 0.7778, 45.0),
+            (0.9293, 1.0707, 45.0),
+            (1.0707, 0.9293, 45.0),
+        ];
+        assert_eq!(f.len(), want.len());
+        for (k, (x, y, a)) in want.iter().enumerate() {
+            assert!(near(&f[k], *x, *y, *a), "#{k}: {:?}", f[k]);
+        }
+        // Without the bug the first foot is beside the start.
+        let f = faithful(&[v2(0.0, 0.0), v2(1.0, 0.0)], &[0.0, 0.0], &p, false);
+        assert!(near(&f[0], 0.0, -0.1, 0.0));
+    }
+
+    #[test]
+    fn improved_steps_alternate_keep_their_yaw_limit_and_cover_the_path() {
+        let p = StepParams::default();
+        let path = [v2(0.0, 0.0), v2(1.0, 0.05), v2(1.2, 1.5), v2(-0.5, 1.6)];
+        let f = improved(&path, 0.0, &p);
+        // Alternating sides, the last two side by side and parallel.
+        for w in f.windows(2) {
+            assert_ne!(w[0].left, w[1].left);
+            assert!(wrap(w[1].yaw - w[0].yaw).abs() <= p.max_yaw + 1e-9, "{w:?}");
+        }
+        let (a, b) = (f[f.len() - 2], f[f.len() - 1]);
+        assert!((a.yaw - b.yaw).abs() < 1e-12);
+        assert!((a.p.dist(b.p) - 2.0 * p.half_stance).abs() < 1e-9);
+        // The feet end beside the goal.
+        let mid = (a.p + b.p) * 0.5;
+        assert!(mid.dist(path[3]) < 1e-9, "{mid:?}");
+        // No step longer than max_step.
+        let hips: Vec<V2> = f.iter().map(|x| x.p).collect();
+        for k in 2..hips.len() {
+            assert!(hips[k].dist(hips[k - 2]) <= 2.0 * p.max_step + 1e-9);
+        }
+    }
+}

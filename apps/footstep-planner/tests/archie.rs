@@ -1,0 +1,232 @@
+//! Archie's planner: the thesis's golden vectors, and its scenes (seed 000, section 4.4) in
+//! both modes.
+
+use std::path::PathBuf;
+
+use stride_footstep_planner::archie::{
+    avoidance_waypoints, child_id, exact_length, headings, inflate, plan_exact, plan_tree, Params,
+};
+use stride_footstep_planner::geom::{v2, Circle};
+use stride_footstep_planner::plan::Status;
+use stride_footstep_planner::scene::Scene;
+use stride_footstep_planner::steps::{self, footprint_hits, StepParams};
+
+fn scenes() -> Vec<Scene> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/archie");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    files.sort();
+    files.iter().map(|f| Scene::load(f).unwrap()).collect()
+}
+
+#[test]
+fn tangent_waypoints_golden_vector() {
+    // S (0, 0), G (4, 0), a 0.5 m obstacle at (2, 0) grown by 0.1 m.
+    let c = Circle {
+        c: v2(2.0, 0.0),
+        r: 0.6,
+    };
+    let [left, right] = avoidance_waypoints(v2(0.0, 0.0), v2(4.0, 0.0), &c);
+    let (l, r) = (left.unwrap(), right.unwrap());
+    assert!(
+        (l.x - 2.0).abs() < 1e-9 && (l.y - 0.6290).abs() < 1e-4,
+        "{l:?}"
+    );
+    assert!(
+        (r.x - 2.0).abs() < 1e-9 && (r.y + 0.6290).abs() < 1e-4,
+        "{r:?}"
+    );
+    let obstacle = [Circle {
+        c: v2(2.0, 0.0),
+        r: 0.5,
+    }];
+    let (plan, ids) = plan_tree(v2(0.0, 0.0), v2(4.0, 0.0), &obstacle, &Params::default());
+    assert_eq!(plan.status, Status::Ok);
+    assert!((plan.cost - 4.1931).abs() < 1e-4, "{}", plan.cost);
+    assert_eq!(ids, [1, 1]); // root, then its left child
+                             // The exact optimum goes round the circle: shorter than the tangents' corner.
+    let exact = exact_length(v2(0.0, 0.0), v2(4.0, 0.0), &obstacle, &Params::default()).unwrap();
+    assert!(exact < plan.cost && exact > 4.0, "{exact}");
+}
+
+#[test]
+fn thesis_ids_per_level() {
+    let mut level = vec![1u64];
+    let want: [&[u64]; 5] = [
+        &[1],
+        &[1, 2],
+        &[2, 3, 4, 5],
+        &[6, 7, 9, 10, 12, 13, 15, 16],
+        &[
+            24, 25, 28, 29, 36, 37, 40, 41, 48, 49, 52, 53, 60, 61, 64, 65,
+        ],
+    ];
+    for (l, ids) in want.iter().enumerate() {
+        assert_eq!(&level[..], *ids, "level {}", l + 1);
+        level = level
+            .iter()
+            .flat_map(|&id| [child_id(id, l as u32 + 1, 0), child_id(id, l as u32 + 1, 1)])
+            .collect();
+    }
+}
+
+#[test]
+fn every_scene_in_both_modes() {
+    let thesis = Params::default();
+    let improved = Params::improved();
+    let sp = StepParams::default();
+    let scenes = scenes();
+    assert_eq!(scenes.len(), 11);
+    for s in &scenes {
+        let obstacles = s.circles();
+        let (start, goal) = (s.start.p(), s.goal.p());
+        let (tree, _) = plan_tree(start, goal, &obstacles, &thesis);
+        // The exact planner on the thesis's circles (to compare), and with its own settings.
+        let same = plan_exact(start, goal, &obstacles, &thesis);
+        let exact = plan_exact(start, goal, &obstacles, &improved);
+        let optimum = exact_length(start, goal, &obstacles, &thesis).unwrap();
+        for (mode, plan, p) in [
+            ("faithful", &tree, &thesis),
+            ("exact, thesis inflation", &same, &thesis),
+            ("improved", &exact, &improved),
+        ] {
+            assert_eq!(
+                plan.status,
+                Status::Ok,
+                "{} {mode}: {}",
+                s.name,
+                plan.detail
+            );
+            assert_eq!(plan.path.first(), Some(&start));
+            assert_eq!(plan.path.last(), Some(&goal));
+            // No segment enters an inflated circle.
+            for w in plan.path.windows(2) {
+                for c in &inflate(&obstacles, p.inflation) {
+                    assert!(
+                        !c.blocks(w[0], w[1]),
+                        "{} {mode}: {:?} crosses {c:?}",
+                        s.name,
+                        w
+                    );
+                }
+            }
+        }
+        // On the same circles the exact path is never longer than the thesis's, and within
+        // 1 % of the optimum.
+        assert!(
+            same.cost <= tree.cost * 1.005,
+            "{}: {} > {}",
+            s.name,
+            same.cost,
+            tree.cost
+        );
+        assert!(
+            same.cost <= optimum * 1.01,
+            "{}: {} vs optimum {optimum}",
+            s.name,
+            same.cost
+        );
+        assert!(tree.cost >= optimum - 1e-9);
+        // The thesis's claim, as it can hold for its footsteps: no foot is placed on an
+        // obstacle. The improved footsteps keep whole footprints off them.
+        let dirs = headings(&tree.path, s.start.yaw);
+        for f in steps::faithful(&tree.path, &dirs, &sp, true) {
+            assert!(
+                !obstacles.iter().any(|c| c.contains(f.p)),
+                "{}: {f:?}",
+                s.name
+            );
+        }
+        for f in steps::improved(&exact.path, s.start.yaw, &sp) {
+            for c in &obstacles {
+                assert!(
+                    !footprint_hits(&f, sp.foot_offset, c),
+                    "{} improved: {f:?} on {c:?}",
+                    s.name
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn case_9_detour_is_gone_and_ends_are_checked() {
+    let s = scenes()
+        .into_iter()
+        .find(|s| s.name == "archie-09")
+        .unwrap();
+    let p = Params::default();
+    let obstacles = s.circles();
+    let (tree, _) = plan_tree(s.start.p(), s.goal.p(), &obstacles, &p);
+    let exact = plan_exact(s.start.p(), s.goal.p(), &obstacles, &p);
+    assert!(
+        exact.cost < tree.cost - 0.05,
+        "{} vs {}",
+        exact.cost,
+        tree.cost
+    );
+    // A start or goal inside an obstacle is reported as such.
+    let inside = plan_exact(v2(1.0, 1.0), s.goal.p(), &obstacles, &p);
+    assert_eq!(inside.status, Status::StartInCollision);
+    let inside = plan_tree(s.start.p(), v2(2.0, 2.0), &obstacles, &p).0;
+    assert_eq!(inside.status, Status::GoalInCollision);
+    // A goal walled in: no path, said so.
+    let ring: Vec<Circle> = (0..12)
+        .map(|k| {
+            let a = k as f64 * std::f64::consts::TAU / 12.0;
+            Circle {
+                c: v2(5.0 + a.cos(), a.sin()),
+                r: 0.4,
+            }
+        })
+        .collect();
+    assert_eq!(
+        plan_exact(v2(0.0, 0.0), v2(5.0, 0.0), &ring, &p).status,
+        Status::NoPath
+    );
+    assert_eq!(
+        plan_tree(v2(0.0, 0.0), v2(5.0, 0.0), &ring, &p).0.status,
+        Status::NoPath
+    );
+}
+
+mod random_scenes {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+
+        /// On random circle fields the exact path never enters a circle, is never longer than
+        /// the thesis tree's (same circles), and lies within 1 % of the optimum.
+        #[test]
+        fn exact_is_valid_and_never_worse(
+            cs in prop::collection::vec((0.5f64..4.5, -2.0f64..2.0, 0.2f64..0.7), 1..8)
+        ) {
+            let obstacles: Vec<Circle> = cs.iter().map(|&(x, y, r)| Circle { c: v2(x, y), r }).collect();
+            let p = Params::default();
+            let (start, goal) = (v2(0.0, 0.0), v2(5.0, 0.0));
+            let inflated = inflate(&obstacles, p.inflation);
+            prop_assume!(!inflated.iter().any(|c| c.contains(start) || c.contains(goal)));
+            let exact = plan_exact(start, goal, &obstacles, &p);
+            let (tree, _) = plan_tree(start, goal, &obstacles, &p);
+            if exact.status == Status::Ok {
+                for w in exact.path.windows(2) {
+                    prop_assert!(!inflated.iter().any(|c| c.blocks(w[0], w[1])));
+                }
+                let opt = exact_length(start, goal, &obstacles, &p).unwrap();
+                prop_assert!(exact.cost <= opt * 1.01 + 1e-9, "{} vs {}", exact.cost, opt);
+            }
+            if tree.status == Status::Ok {
+                for w in tree.path.windows(2) {
+                    prop_assert!(!inflated.iter().any(|c| c.blocks(w[0], w[1])));
+                }
+                prop_assert_eq!(exact.status, Status::Ok);
+                prop_assert!(exact.cost <= tree.cost * 1.005 + 1e-9, "{} vs {}", exact.cost, tree.cost);
+            }
+        }
+    }
+}
