@@ -9,3 +9,4 @@ pub mod geom;
 pub mod plan;
 pub mod scene;
 pub mod steps;
+pub mod svg;
