@@ -230,3 +230,29 @@ mod random_scenes {
         }
     }
 }
+
+/// A random scene where an arc's last polygon side touched its circle 50 nm too deep.
+#[test]
+fn regression_tangent_rounding() {
+    let obstacles = [
+        Circle {
+            c: v2(2.7026995409277204, 0.4027697897220569),
+            r: 0.23136424450625914,
+        },
+        Circle {
+            c: v2(1.185676602315754, -0.28046698541680365),
+            r: 0.49144045826201194,
+        },
+        Circle {
+            c: v2(4.084400111107402, 1.5129131700264116),
+            r: 0.2747703392676042,
+        },
+    ];
+    let p = Params::default();
+    let inflated = inflate(&obstacles, p.inflation);
+    let exact = plan_exact(v2(0.0, 0.0), v2(5.0, 0.0), &obstacles, &p);
+    assert_eq!(exact.status, Status::Ok);
+    for w in exact.path.windows(2) {
+        assert!(!inflated.iter().any(|c| c.blocks(w[0], w[1])), "{w:?}");
+    }
+}
