@@ -2,10 +2,12 @@
 //! ([`geom`]), Archie's planner ([`archie`]: the thesis's tangent binary tree, faithfully, and
 //! an exact shortest path over the same inflated circles), and footsteps along a path
 //! ([`steps`]: the thesis's computation, faithfully, and an improved one). Every planner answers
-//! with a [`plan::Plan`]: its status, its path and steps, and what the search cost.
+//! with a [`plan::Plan`]: its status, its path and steps, and what the search cost. [`node`] is
+//! the logic of the LCM node (`stride-footstep-planner`).
 
 pub mod archie;
 pub mod geom;
+pub mod node;
 pub mod plan;
 pub mod scene;
 pub mod steps;

@@ -1,0 +1,165 @@
+//! stride-footstep-planner as a process: plans on request, from a scene or from the mapper's
+//! obstacles, and once per change of the world under the plan.
+
+use std::process::Command;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use lcm::Lcm;
+use stride_footstep_planner::geom::v2;
+use stride_footstep_planner::node::request_at;
+use stride_lcmtypes::stride::{
+    FootstepPlanRequestT, FootstepPlanT, NodeStatusT, ObstacleListT, ObstacleT,
+};
+use stride_tests::{bin, handle_until, in_sandbox, udpm_url, Proc};
+
+fn request(id: i64) -> FootstepPlanRequestT {
+    request_at(id, 100, v2(0.0, 0.0), 0.0, v2(4.0, 0.0))
+}
+
+fn circle(id: i32, x: f64, y: f64, r: f64) -> ObstacleT {
+    ObstacleT {
+        id,
+        kind: ObstacleT::KIND_CIRCLE,
+        center: [x, y, 0.0],
+        radius: r,
+        z_min: 0.0,
+        z_max: 1.0,
+        ..Default::default()
+    }
+}
+
+fn obstacles(list: Vec<ObstacleT>) -> ObstacleListT {
+    ObstacleListT {
+        num_obstacles: list.len() as i32,
+        obstacles: list,
+        ..Default::default()
+    }
+}
+
+struct Rig {
+    lcm: Lcm,
+    plans: Arc<Mutex<Vec<FootstepPlanT>>>,
+    _subs: Vec<lcm::Subscription>,
+    node: Proc,
+}
+
+fn start(port: u16, scene: Option<&str>) -> Rig {
+    let url = udpm_url(port);
+    let lcm = Lcm::new(&url).unwrap();
+    let plans = Arc::new(Mutex::new(Vec::new()));
+    let up = Arc::new(Mutex::new(false));
+    let (p, u) = (plans.clone(), up.clone());
+    let subs = vec![
+        lcm.subscribe("FOOTSTEP_PLAN", move |_, m: FootstepPlanT| {
+            p.lock().unwrap().push(m)
+        })
+        .unwrap(),
+        lcm.subscribe("STRIDE_STATUS", move |_, m: NodeStatusT| {
+            if m.node == "stride-footstep-planner" && m.state == NodeStatusT::STATE_RUNNING {
+                *u.lock().unwrap() = true;
+            }
+        })
+        .unwrap(),
+    ];
+    let mut c = Command::new(bin("stride-footstep-planner"));
+    c.args(["--lcm-url", &url, "--log-level", "warn"]);
+    if let Some(s) = scene {
+        c.arg("--scene")
+            .arg(std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(s));
+    }
+    let node = Proc::spawn(c);
+    assert!(
+        handle_until(&lcm, Duration::from_secs(10), || *up.lock().unwrap()),
+        "never up"
+    );
+    Rig {
+        lcm,
+        plans,
+        _subs: subs,
+        node,
+    }
+}
+
+#[test]
+fn plans_from_a_scene() {
+    if !in_sandbox() {
+        return;
+    }
+    let r = start(7781, Some("../config/scenes/archie/archie-09.toml"));
+    let mut req = request(1);
+    req.goal_x = 1.0;
+    req.goal_y = -3.0;
+    r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &req).unwrap();
+    assert!(handle_until(&r.lcm, Duration::from_secs(5), || !r
+        .plans
+        .lock()
+        .unwrap()
+        .is_empty()));
+    let plan = r.plans.lock().unwrap()[0].clone();
+    assert_eq!(
+        (plan.request_id, plan.step_number, plan.status),
+        (1, 100, FootstepPlanT::STATUS_OK)
+    );
+    assert!(plan.num_steps > 10 && plan.steps[0].step_number == 101);
+    assert!((plan.cost - 4.29).abs() < 0.05, "{}", plan.cost);
+    // Another planner: a clear refusal, with steps in place.
+    let mut kaist = request(2);
+    kaist.planner = FootstepPlanRequestT::PLANNER_KAIST;
+    r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &kaist).unwrap();
+    assert!(handle_until(&r.lcm, Duration::from_secs(5), || r
+        .plans
+        .lock()
+        .unwrap()
+        .len()
+        == 2));
+    let refused = r.plans.lock().unwrap()[1].clone();
+    assert_eq!(refused.status, FootstepPlanT::STATUS_BAD_REQUEST);
+    assert!(refused.num_steps >= 3);
+    let (st, _) = r.node.interrupt();
+    assert!(st.success());
+}
+
+#[test]
+fn replans_once_when_the_world_blocks_the_plan() {
+    if !in_sandbox() {
+        return;
+    }
+    let r = start(7782, None);
+    let world = vec![circle(1, 2.0, 1.5, 0.3)];
+    r.lcm
+        .publish("OBSTACLES", &obstacles(world.clone()))
+        .unwrap();
+    handle_until(&r.lcm, Duration::from_millis(200), || false);
+    r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &request(9)).unwrap();
+    assert!(handle_until(&r.lcm, Duration::from_secs(5), || r
+        .plans
+        .lock()
+        .unwrap()
+        .len()
+        == 1));
+    let straight = r.plans.lock().unwrap()[0].cost;
+    assert!((straight - 4.0).abs() < 1e-6, "{straight}");
+    // An obstacle appears on the way, reported five times: one new plan around it.
+    let mut blocked = world;
+    blocked.push(circle(2, 2.0, 0.0, 0.4));
+    for _ in 0..5 {
+        r.lcm
+            .publish("OBSTACLES", &obstacles(blocked.clone()))
+            .unwrap();
+        handle_until(&r.lcm, Duration::from_millis(100), || false);
+    }
+    handle_until(&r.lcm, Duration::from_secs(1), || false);
+    let plans = r.plans.lock().unwrap().clone();
+    assert_eq!(
+        plans.len(),
+        2,
+        "{:?}",
+        plans.iter().map(|p| p.cost).collect::<Vec<_>>()
+    );
+    assert_eq!(plans[1].request_id, 9);
+    assert!(plans[1].cost > straight + 0.05);
+    drop(plans);
+    let (st, _) = r.node.interrupt();
+    assert!(st.success());
+}
