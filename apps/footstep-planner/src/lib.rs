@@ -7,6 +7,7 @@
 
 pub mod archie;
 pub mod geom;
+pub mod kaist;
 pub mod node;
 pub mod plan;
 pub mod scene;
