@@ -150,6 +150,54 @@ pub fn path_length(p: &[V2]) -> f64 {
     p.windows(2).map(|w| w[0].dist(w[1])).sum()
 }
 
+/// True when two convex polygons (corners in order) overlap (separating-axis test; touching
+/// does not count).
+pub fn convex_overlap(a: &[V2], b: &[V2]) -> bool {
+    for poly in [a, b] {
+        for i in 0..poly.len() {
+            let e = poly[(i + 1) % poly.len()] - poly[i];
+            let n = v2(-e.y, e.x);
+            let (amin, amax) = project(a, n);
+            let (bmin, bmax) = project(b, n);
+            if amax <= bmin + EPS || bmax <= amin + EPS {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+fn project(p: &[V2], n: V2) -> (f64, f64) {
+    p.iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
+            let d = q.dot(n);
+            (lo.min(d), hi.max(d))
+        })
+}
+
+/// Distance from `c` to the convex polygon `poly` (0 inside).
+pub fn point_polygon_distance(c: V2, poly: &[V2]) -> f64 {
+    let inside = (0..poly.len()).all(|i| {
+        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+        (b - a).cross(c - a) >= 0.0
+    });
+    if inside {
+        return 0.0;
+    }
+    (0..poly.len())
+        .map(|i| point_segment_distance(c, poly[i], poly[(i + 1) % poly.len()]))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// True when segments `a`–`b` and `c`–`d` cross.
+pub fn segments_cross(a: V2, b: V2, c: V2, d: V2) -> bool {
+    let d1 = (b - a).cross(c - a);
+    let d2 = (b - a).cross(d - a);
+    let d3 = (d - c).cross(a - c);
+    let d4 = (d - c).cross(b - c);
+    (d1 * d2 < 0.0) && (d3 * d4 < 0.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -176,5 +224,31 @@ mod tests {
         assert!((x.x - 1.0).abs() < 1e-12 && (x.y - 1.0).abs() < 1e-12);
         assert!((wrap(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
         assert!((wrap(-1.5 * std::f64::consts::PI) - 0.5 * std::f64::consts::PI).abs() < 1e-12);
+    }
+
+    #[test]
+    fn polygons() {
+        let sq = [v2(0.0, 0.0), v2(1.0, 0.0), v2(1.0, 1.0), v2(0.0, 1.0)];
+        let moved = |dx: f64| sq.map(|p| p + v2(dx, 0.3));
+        assert!(convex_overlap(&sq, &moved(0.5)));
+        assert!(
+            !convex_overlap(&sq, &moved(1.0)),
+            "touching is not overlapping"
+        );
+        assert!(!convex_overlap(&sq, &moved(1.5)));
+        assert_eq!(point_polygon_distance(v2(0.5, 0.5), &sq), 0.0);
+        assert!((point_polygon_distance(v2(2.0, 0.5), &sq) - 1.0).abs() < 1e-12);
+        assert!(segments_cross(
+            v2(-1.0, 0.5),
+            v2(2.0, 0.5),
+            v2(0.5, -1.0),
+            v2(0.5, 2.0)
+        ));
+        assert!(!segments_cross(
+            v2(-1.0, 3.0),
+            v2(2.0, 3.0),
+            v2(0.5, -1.0),
+            v2(0.5, 2.0)
+        ));
     }
 }

@@ -8,6 +8,7 @@
 pub mod archie;
 pub mod geom;
 pub mod kaist;
+pub mod kaist_search;
 pub mod node;
 pub mod plan;
 pub mod scene;

@@ -80,6 +80,36 @@ pub enum Obstacle {
 }
 
 impl Obstacle {
+    /// Its footprint as a convex polygon (counter-clockwise), or `None` for a circle.
+    pub fn polygon(&self) -> Option<Vec<V2>> {
+        match self {
+            Obstacle::Circle { .. } => None,
+            Obstacle::Box {
+                x,
+                y,
+                yaw,
+                length,
+                width,
+                ..
+            } => {
+                let (d, s) = (
+                    V2::polar(*yaw),
+                    V2::polar(yaw + std::f64::consts::FRAC_PI_2),
+                );
+                let c = v2(*x, *y);
+                Some(
+                    [(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)]
+                        .iter()
+                        .map(|&(a, b)| c + d * (a * length / 2.0) + s * (b * width / 2.0))
+                        .collect(),
+                )
+            }
+            Obstacle::Polygon { points, .. } => {
+                Some(points.iter().map(|p| v2(p[0], p[1])).collect())
+            }
+        }
+    }
+
     /// The smallest circle around its footprint (a circle for a circle; the circumscribed
     /// circle of a box; the centroid's farthest corner for a polygon): what a planner that only
     /// knows circles must avoid.
