@@ -13,12 +13,11 @@
 //!   Dijkstra; arcs become waypoints on a polygon circumscribed about the circle, so the path
 //!   never enters it and is at most a fraction of a percent longer than the exact optimum.
 
-use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 use std::time::{Duration, Instant};
 
 use crate::geom::{line_intersection, path_length, v2, wrap, Circle, EPS, V2};
-use crate::plan::{Plan, Stats, Status};
+use crate::plan::{Least, Plan, Stats, Status};
 
 /// Settings of Archie's planner.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -225,6 +224,7 @@ pub fn plan_tree(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> (Plan
             cost,
             steps: Vec::new(),
             stats,
+            bound: None,
         },
         ids,
     )
@@ -244,23 +244,6 @@ enum Way {
     Straight,
     /// Along circle `i`, counter-clockwise (true) or clockwise.
     Arc(usize, bool),
-}
-
-#[derive(PartialEq)]
-struct Entry(f64, usize);
-
-impl Eq for Entry {}
-
-impl Ord for Entry {
-    fn cmp(&self, o: &Self) -> Ordering {
-        o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
-    }
-}
-
-impl PartialOrd for Entry {
-    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-        Some(self.cmp(o))
-    }
 }
 
 /// The angular interval of circle `ci`'s rim that circle `cj` covers, as (centre angle, half
@@ -431,8 +414,8 @@ fn tangent_graph_path(
     let mut prev: Vec<Option<(usize, Way)>> = vec![None; n];
     let mut heap = BinaryHeap::new();
     dist[0] = 0.0;
-    heap.push(Entry(0.0, 0));
-    while let Some(Entry(d, u)) = heap.pop() {
+    heap.push(Least(0.0, 0));
+    while let Some(Least(d, u)) = heap.pop() {
         if d > dist[u] {
             continue;
         }
@@ -445,7 +428,7 @@ fn tangent_graph_path(
             if d + w < dist[v] {
                 dist[v] = d + w;
                 prev[v] = Some((u, way));
-                heap.push(Entry(d + w, v));
+                heap.push(Least(d + w, v));
             }
         }
     }
@@ -516,6 +499,7 @@ pub fn plan_exact(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> Plan
         cost,
         steps: Vec::new(),
         stats,
+        bound: Some(1.0),
     }
 }
 

@@ -67,6 +67,16 @@ impl V2 {
     pub fn polar(a: f64) -> V2 {
         v2(a.cos(), a.sin())
     }
+
+    /// The least of each coordinate.
+    pub fn min(self, o: V2) -> V2 {
+        v2(self.x.min(o.x), self.y.min(o.y))
+    }
+
+    /// The greatest of each coordinate.
+    pub fn max(self, o: V2) -> V2 {
+        v2(self.x.max(o.x), self.y.max(o.y))
+    }
 }
 
 /// A circle (an obstacle, usually already inflated).

@@ -1,36 +1,34 @@
-//! The KAIST footstep search (seed 004, §B.1, §B.4) over footholds (x, y, yaw, side).
+//! The KAIST footstep search (seed 004, §B.1, §B.4) over footholds (x, y, yaw, side) on an
+//! elevation grid.
 //!
 //! - faithful ([`Mode::Thesis`]): a tree search (no duplicate detection) capped at 2000
 //!   expansions, the adaptive action set (per subset, the feasible candidate of least cost of
 //!   transport; the full set within 0.6 m of the goal), the thesis's heuristic (Eq. 14). The
 //!   local-minimum penalty (Eq. 15) is not built: without it the thesis's planner fails at the
 //!   cap behind a wall, and so does this one.
-//! - improved ([`Mode::Improved`]): A* with duplicate detection on a lattice (0.02 m, 5°, side)
-//!   and a closed set, the same actions, the admissible energy bound; a time budget, after
-//!   which the best partial plan (the node nearest the goal by the heuristic) comes back.
+//! - improved ([`Mode::Improved`]): A* with duplicate detection on a lattice (0.05 m, 5°,
+//!   side) and a closed set, the same actions, an admissible energy bound
+//!   ([`kaist::h_improved`]) also taken along the 2-D way around tall cells
+//!   ([`Heuristic::Dijkstra2d`]), and an anytime schedule: weighted A* with a decreasing
+//!   weight (1.5, 1.2, 1), each pass pruned by the best plan so far, until the budget runs
+//!   out. The plan reports the weight of the last finished pass as its bound (the 2-D part is
+//!   a heuristic, not a proven bound: see [`Heuristic::Dijkstra2d`]). With no plan at the
+//!   budget, the node nearest the goal by the heuristic comes back as a partial plan.
 //!
-//! Feasibility is at foot level (the foot's rectangle off every obstacle) and along the swing
-//! (the swing foot's straight path crosses no obstacle); obstacles are walls (heights and the
-//! body-level ellipses need the elevation grid, not built yet).
-//!
-//! Where it stands (measured on the notes' scenarios B1 to B8, `config/scenes/kaist`): both
-//! modes plan B1 and the 45° turns of B2, the improved mode at a lower cost; the thesis mode
-//! fails at its cap behind B3's wall, as the thesis's does without its penalty. Not yet good
-//! enough: the improved heuristic counts only what every step must pay (the constant C and an
-//! even turn), so goals at 90° and beyond, and the walls of B3 and B4, take the improved mode
-//! tens of thousands of expansions, past its 200 ms budget (it then returns a partial plan).
-//! A tighter admissible bound and the 2-D Dijkstra heuristic are the next steps.
+//! Feasibility is the thesis's, on the grid (the notes' R-F1, R-F2): a foothold is refused when
+//! a cell under the foot is unknown or more than `step_height` above the stance foot; a step is
+//! refused when a cell of either swing ellipse (stance to new foot, grown by the sway; old to
+//! new foot position) is more than `body_height` above the stance foot.
 
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
 use std::time::{Duration, Instant};
 
-use crate::geom::{
-    convex_overlap, point_polygon_distance, point_segment_distance, segments_cross, v2, wrap,
-    Circle, V2,
-};
+use crate::geom::{v2, wrap, V2};
+use crate::grid::{Grid, GridError};
 use crate::kaist::{self, Action, CostParams, Subset};
 use crate::plan::{Foot, Plan, Stats, Status};
+use crate::scene::Scene;
 use crate::steps::FOOT;
 
 /// Which planner.
@@ -38,12 +36,65 @@ use crate::steps::FOOT;
 pub enum Mode {
     /// The thesis's tree search and heuristic.
     Thesis,
-    /// A* on a lattice with an admissible heuristic.
+    /// A* on a lattice with an admissible heuristic, anytime.
     Improved,
 }
 
-/// Settings of the search.
+/// The heuristic (the notes' C.5 names).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Heuristic {
+    /// None: uniform-cost search (exact, slow; for tests).
+    Zero,
+    /// α·m·g·d (Eq. 12).
+    Euclid,
+    /// Eq. 12 plus the turn, F·Δθ²/N (Eq. 14): the thesis's.
+    EuclidAngle,
+    /// The admissible energy bound ([`kaist::h_improved`]).
+    EnergyBound,
+    /// The energy bound, also taken over the length of the 2-D way around tall cells (R-S3).
+    /// Every node's centre is the middle of a stance-to-swing ellipse, so it keeps clear of
+    /// tall cells, as the field's way does; the field is discounted for its grid. A lower
+    /// bound up to the corners the straight moves between centres can cut, which the
+    /// discount covers.
+    Dijkstra2d,
+}
+
+/// How candidates become successors (R-A3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ActionSet {
+    /// Every feasible candidate.
+    FixedFull,
+    /// The farthest candidate of each subset, if feasible.
+    FixedSmall,
+    /// Per subset, the farthest feasible candidate.
+    AdaptiveFarthest,
+    /// Per subset, the feasible candidate of least cost of transport (the thesis's).
+    AdaptiveMinCot,
+}
+
+/// The feasibility thresholds (R-F1, R-F2).
 #[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Feasibility {
+    /// Highest cell under a foot above the stance foot, m (the thesis's 5 cm).
+    pub step_height: f64,
+    /// Highest cell in a swing ellipse above the stance foot, m (not in the thesis: 0.15).
+    pub body_height: f64,
+    /// Growth of the stance-to-swing ellipse along its axis for the lateral sway, m.
+    pub sway: f64,
+}
+
+impl Default for Feasibility {
+    fn default() -> Self {
+        Feasibility {
+            step_height: 0.05,
+            body_height: 0.15,
+            sway: 0.05,
+        }
+    }
+}
+
+/// Settings of the search.
+#[derive(Debug, Clone, PartialEq)]
 pub struct Settings {
     /// Robot and cost.
     pub cost: CostParams,
@@ -51,87 +102,100 @@ pub struct Settings {
     pub tolerance: f64,
     /// Within this of the goal, every candidate is expanded, m.
     pub full_set_radius: f64,
-    /// Expansion cap.
+    /// Expansion cap (over all passes).
     pub max_expansions: u64,
     /// Time budget (improved mode).
     pub budget: Duration,
+    /// The heuristic.
+    pub heuristic: Heuristic,
+    /// How candidates become successors.
+    pub actions: ActionSet,
+    /// Feasibility thresholds.
+    pub feasibility: Feasibility,
+    /// The weights of the passes (improved mode; the last should be 1).
+    pub weights: Vec<f64>,
+    /// Lattice cell for duplicate detection: position (m) and yaw (degrees).
+    pub lattice: (f64, f64),
 }
 
 impl Settings {
     /// The defaults for `mode` with `cost` (notes C.1: tolerance 0.1 m, full set within 0.6 m;
-    /// the thesis's cap of 2000; 200 ms and 200 000 expansions in improved mode).
+    /// the thesis's cap of 2000 and heuristic; in improved mode 200 ms, 200 000 expansions,
+    /// the 2-D heuristic, the weights 1.5, 1.2, 1 and a lattice of 0.05 m and 5°).
     pub fn new(mode: Mode, cost: CostParams) -> Settings {
+        let thesis = mode == Mode::Thesis;
         Settings {
             cost,
             tolerance: 0.10,
             full_set_radius: 0.6,
-            max_expansions: if mode == Mode::Thesis { 2000 } else { 200_000 },
-            budget: Duration::from_millis(200),
+            max_expansions: if thesis { 2000 } else { 200_000 },
+            budget: Duration::from_millis(if thesis { 10_000 } else { 200 }),
+            heuristic: if thesis {
+                Heuristic::EuclidAngle
+            } else {
+                Heuristic::Dijkstra2d
+            },
+            actions: ActionSet::AdaptiveMinCot,
+            feasibility: Feasibility::default(),
+            weights: if thesis {
+                vec![1.0]
+            } else {
+                vec![1.5, 1.2, 1.0]
+            },
+            lattice: (0.05, 5.0),
         }
     }
 }
 
-/// The obstacles: circles and convex polygons.
-#[derive(Debug, Clone, Default)]
-pub struct Obstacles {
-    /// Circles.
-    pub circles: Vec<Circle>,
-    /// Convex polygons.
-    pub polygons: Vec<Vec<V2>>,
+/// The world the search sees: an elevation grid.
+#[derive(Debug, Clone)]
+pub struct World {
+    /// The grid.
+    pub grid: Grid,
 }
 
-impl Obstacles {
-    /// From a scene.
-    pub fn of(scene: &crate::scene::Scene) -> Obstacles {
-        let mut o = Obstacles::default();
-        for ob in &scene.obstacle {
-            match ob.polygon() {
-                Some(p) => o.polygons.push(p),
-                None => o.circles.push(ob.bounding_circle()),
-            }
+impl World {
+    /// The grid of a scene.
+    pub fn of(scene: &Scene) -> Result<World, GridError> {
+        Ok(World {
+            grid: Grid::of_scene(scene)?,
+        })
+    }
+
+    /// Flat ground over `x` × `y` (0.05 m cells).
+    pub fn flat(x: [f64; 2], y: [f64; 2]) -> World {
+        World {
+            grid: Grid::flat(x, y, 0.05),
         }
-        o
     }
 
-    fn foot_free(&self, f: &Foot, stats: &mut Stats) -> bool {
-        stats.collision_queries += 1;
-        self.foot_clear(f)
+    /// The height a foot at `f` rests on, if it may stand there with the stance foot at
+    /// `reference` (R-F1): every cell under it known and at most `step_height` above.
+    pub fn foothold(&self, f: &Foot, reference: f64, feas: &Feasibility) -> Option<f64> {
+        let top = self
+            .grid
+            .max_in_rect(f.p, f.yaw, FOOT, 0.0)?
+            .max(self.grid.height(f.p));
+        (top.is_finite() && top <= reference + feas.step_height).then_some(top)
     }
 
-    /// True when the foot's rectangle (centred on its position) touches no obstacle.
-    pub fn foot_clear(&self, f: &Foot) -> bool {
-        let dir = V2::polar(f.yaw);
-        let side = v2(-dir.y, dir.x);
-        let c = f.p;
-        let rect: Vec<V2> = [(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)]
-            .iter()
-            .map(|&(a, b)| c + dir * (a * FOOT.0 / 2.0) + side * (b * FOOT.1 / 2.0))
-            .collect();
-        !self
-            .circles
-            .iter()
-            .any(|ci| crate::steps::footprint_hits(f, 0.0, ci))
-            && !self.polygons.iter().any(|p| convex_overlap(&rect, p))
+    /// True when the foot `f` rests where it may (the check of every step of a plan).
+    pub fn foot_clear(&self, f: &Foot, feas: &Feasibility) -> bool {
+        self.foothold(f, f.z, feas)
+            .is_some_and(|z| (z - f.z).abs() < 1e-9)
     }
 
-    fn swing_free(&self, a: V2, b: V2) -> bool {
-        !self
-            .circles
-            .iter()
-            .any(|c| point_segment_distance(c.c, a, b) < c.r)
-            && !self.polygons.iter().any(|p| {
-                point_polygon_distance(a, p) == 0.0
-                    || point_polygon_distance(b, p) == 0.0
-                    || (0..p.len()).any(|i| segments_cross(a, b, p[i], p[(i + 1) % p.len()]))
-            })
-    }
-
-    fn contains(&self, p: V2) -> bool {
-        self.circles.iter().any(|c| c.contains(p))
-            || self
-                .polygons
-                .iter()
-                .any(|q| point_polygon_distance(p, q) == 0.0)
+    /// R-F2: no cell of the two swing ellipses above `body_height` over the stance foot.
+    pub fn body_clear(&self, stance: &Foot, old: V2, new: V2, feas: &Feasibility) -> bool {
+        let limit = stance.z + feas.body_height;
+        // NaN (unknown) compares false: refused.
+        let ok = |top: Option<f64>| top.is_some_and(|h| h <= limit);
+        ok(self
+            .grid
+            .max_in_ellipse(stance.p, new, feas.sway, FOOT.0 / 2.0))
+            && ok(self
+                .grid
+                .max_in_ellipse(old, new, FOOT.0 / 2.0, FOOT.1 / 2.0))
     }
 }
 
@@ -155,7 +219,7 @@ impl Node {
 }
 
 /// Places the swing foot by `a` from `stance` (actions are for a left stance; mirrored for a
-/// right one).
+/// right one). Its height is the stance's until the grid is asked.
 pub fn apply(stance: &Foot, a: &Action) -> Foot {
     let (dy, dt) = if stance.left {
         (a.dy, a.dtheta)
@@ -166,6 +230,7 @@ pub fn apply(stance: &Foot, a: &Action) -> Foot {
     let side = v2(-dir.y, dir.x);
     Foot {
         p: stance.p + dir * a.dx + side * dy,
+        z: stance.z,
         yaw: wrap(stance.yaw + dt),
         left: !stance.left,
     }
@@ -196,213 +261,459 @@ impl PartialOrd for Entry {
     }
 }
 
-/// The candidates to expand from `n`: within `full_set_radius` of the goal every feasible one;
-/// elsewhere, per subset, the feasible one of least cost of transport (least energy where
-/// there is no advance).
-fn candidates(
-    n: &Node,
-    acts: &[Action],
-    s: &Settings,
-    goal: V2,
-    world: &Obstacles,
-    stats: &mut Stats,
-) -> Vec<(Foot, f64)> {
-    let near = n.centre().dist(goal) <= s.full_set_radius;
-    let p = &s.cost;
-    let mut out = Vec::new();
-    let mut seen: Vec<Subset> = Vec::new();
-    for a in acts {
-        if !near && seen.contains(&a.subset) {
-            continue;
-        }
-        let f = apply(&n.stance, a);
-        stats.generated += 1;
-        if !world.foot_free(&f, stats) || !world.swing_free(n.other.p, f.p) {
-            continue;
-        }
-        out.push((f, a.energy_mg(p) * p.mg()));
-        if !near {
-            seen.push(a.subset);
-        }
+/// What a step achieves, for the adaptive choice: metres of advance, radians of turn on the
+/// spot, or metres sideways.
+fn achieved(a: &Action, p: &CostParams) -> f64 {
+    if a.dx > 0.0 {
+        a.dx
+    } else if a.dtheta != 0.0 {
+        a.dtheta.abs()
+    } else {
+        (a.dy.abs() - p.w_nom).max(1e-6)
     }
-    out
 }
 
-/// The actions ordered for the adaptive choice: per subset, least energy per unit of what the
-/// step achieves first: per metre of advance (the cost of transport), per radian for a turn on
-/// the spot, per metre sideways for a sidestep. (The thesis leaves the steps without advance
-/// open; least energy alone would always pick the smallest turn.)
-fn ordered_actions(p: &CostParams) -> Vec<Action> {
+/// The actions in the order the choice takes them: per subset, least energy per unit of what
+/// the step achieves first (the cost of transport per metre of advance; per radian for a turn
+/// on the spot, per metre sideways for a sidestep: the thesis leaves the steps without advance
+/// open, and least energy alone would always pick the smallest turn), or the farthest first.
+fn ordered_actions(p: &CostParams, set: ActionSet) -> Vec<Action> {
     let mut acts = kaist::actions(p);
-    let key = |a: &Action| {
-        let achieved = if a.dx > 0.0 {
-            a.dx
-        } else if a.dtheta != 0.0 {
-            a.dtheta.abs()
-        } else {
-            (a.dy.abs() - p.w_nom).max(1e-6)
-        };
-        a.energy_mg(p) / achieved
-    };
-    acts.sort_by(|a, b| key(a).total_cmp(&key(b)));
+    match set {
+        ActionSet::AdaptiveMinCot | ActionSet::FixedFull => {
+            let key = |a: &Action| a.energy_mg(p) / achieved(a, p);
+            acts.sort_by(|a, b| key(a).total_cmp(&key(b)));
+        }
+        ActionSet::AdaptiveFarthest | ActionSet::FixedSmall => {
+            acts.sort_by(|a, b| achieved(b, p).total_cmp(&achieved(a, p)));
+        }
+    }
     acts
 }
 
-/// Plans from the robot standing at `start` (feet side by side, the right one to swing first)
-/// to `goal` (a position).
-pub fn plan(
-    start: V2,
-    start_yaw: f64,
+/// Everything one plan's passes share.
+struct Problem<'a> {
+    world: &'a World,
+    s: &'a Settings,
+    acts: Vec<Action>,
+    alpha: f64,
     goal: V2,
-    world: &Obstacles,
-    mode: Mode,
-    s: &Settings,
-) -> Plan {
-    let t0 = Instant::now();
-    let p = &s.cost;
-    let acts = ordered_actions(p);
-    let alpha = kaist::alpha(p, &acts);
-    let mg = p.mg();
-    let mut stats = Stats::default();
-    let side = v2(-start_yaw.sin(), start_yaw.cos()) * (p.w_nom / 2.0);
-    let left = Foot {
-        p: start + side,
-        yaw: start_yaw,
-        left: true,
-    };
-    let right = Foot {
-        p: start - side,
-        yaw: start_yaw,
-        left: false,
-    };
-    if !world.foot_free(&left, &mut stats) || !world.foot_free(&right, &mut stats) {
-        return Plan::failed(
-            Status::StartInCollision,
-            "a foot of the start stands on an obstacle",
-            stats,
-        );
-    }
-    if world.contains(goal) {
-        return Plan::failed(
-            Status::GoalInCollision,
-            "the goal is inside an obstacle",
-            stats,
-        );
-    }
-    let h = |n: &Node| {
+    field: Option<Vec<f64>>,
+    lattice: bool,
+    deadline: Instant,
+}
+
+impl Problem<'_> {
+    /// The heuristic of `n`, in energy units.
+    fn h(&self, n: &Node) -> f64 {
+        let p = &self.s.cost;
         let c = n.centre();
-        let (d, bearing) = (c.dist(goal), (goal - c).angle());
-        mg * match mode {
-            Mode::Thesis => kaist::h_thesis(p, alpha, d, n.heading(), bearing),
-            Mode::Improved => kaist::h_improved(p, d, s.tolerance, n.heading(), bearing),
+        let (d, bearing) = (c.dist(self.goal), (self.goal - c).angle());
+        let (ds, bs) = (n.stance.p.dist(self.goal), (self.goal - n.stance.p).angle());
+        let yaw = n.stance.yaw;
+        let tol = self.s.tolerance;
+        p.mg()
+            * match self.s.heuristic {
+                Heuristic::Zero => 0.0,
+                Heuristic::Euclid => self.alpha * d,
+                Heuristic::EuclidAngle => kaist::h_thesis(p, self.alpha, d, n.heading(), bearing),
+                Heuristic::EnergyBound => kaist::h_improved(p, ds, bs, yaw, d, tol),
+                Heuristic::Dijkstra2d => {
+                    let e = kaist::h_improved(p, ds, bs, yaw, d, tol);
+                    match self.geodesic(n) {
+                        // No direction: the best way round may leave either side.
+                        Some(dg) => e.max(kaist::h_improved(p, dg, yaw, yaw, d, tol)),
+                        None => e,
+                    }
+                }
+            }
+    }
+
+    /// A lower bound of the distance from the stance foot of `n` to the goal along any way
+    /// its steps can take: the distance field at the robot's centre (which keeps clear of tall
+    /// cells, as the field's way does), discounted for the grid (16-neighbour moves overstate
+    /// a straight line by up to 2 %; the cell adds up to 1.5 cells of offset), less the half
+    /// of the feet's separation between the centre and the stance foot.
+    fn geodesic(&self, n: &Node) -> Option<f64> {
+        let g = &self.world.grid;
+        let f = self.field.as_ref()?;
+        let (i, j) = g.cell(n.centre())?;
+        let d = f[j * g.nx + i];
+        d.is_finite()
+            .then(|| (d / 1.02 - 1.5 * g.res - n.stance.p.dist(n.other.p) / 2.0).max(0.0))
+    }
+
+    /// The successors of `n`.
+    fn successors(&self, n: &Node, stats: &mut Stats) -> Vec<(Foot, f64)> {
+        let s = self.s;
+        let p = &s.cost;
+        let near = n.centre().dist(self.goal) <= s.full_set_radius;
+        let full =
+            s.actions == ActionSet::FixedFull || (near && s.actions != ActionSet::FixedSmall);
+        let mut out = Vec::new();
+        let mut tried: Vec<Subset> = Vec::new();
+        let mut taken: Vec<Subset> = Vec::new();
+        for a in &self.acts {
+            if !full {
+                if taken.contains(&a.subset) {
+                    continue;
+                }
+                if s.actions == ActionSet::FixedSmall && tried.contains(&a.subset) {
+                    continue;
+                }
+                tried.push(a.subset);
+            }
+            let mut f = apply(&n.stance, a);
+            stats.generated += 1;
+            stats.collision_queries += 1;
+            let Some(z) = self.world.foothold(&f, n.stance.z, &s.feasibility) else {
+                continue;
+            };
+            f.z = z;
+            if !self
+                .world
+                .body_clear(&n.stance, n.other.p, f.p, &s.feasibility)
+            {
+                continue;
+            }
+            out.push((f, a.energy_mg(p) * p.mg()));
+            if !full {
+                taken.push(a.subset);
+            }
         }
-    };
-    stats.prepare = t0.elapsed();
-    let t1 = Instant::now();
-    let mut nodes = vec![Node {
-        stance: left,
-        other: right,
-        g: 0.0,
-        parent: None,
-    }];
+        out
+    }
+}
+
+/// How one pass ended.
+enum Pass {
+    /// At the goal: the path's last node.
+    Found(usize),
+    /// Nothing left to expand.
+    Exhausted,
+    /// Stopped by the cap or the budget, with why.
+    Stopped(&'static str),
+}
+
+/// One weighted A* pass (a tree search in thesis mode), pruned by `incumbent`.
+fn pass(
+    pr: &Problem,
+    root: Node,
+    weight: f64,
+    incumbent: f64,
+    stats: &mut Stats,
+    best: &mut (f64, Vec<Foot>),
+) -> (Pass, Vec<Node>) {
+    let (s, lattice, deadline) = (pr.s, pr.lattice, pr.deadline);
+    let mut nodes = vec![root];
     let mut open = BinaryHeap::new();
     let mut order = 0u64;
-    let h0 = h(&nodes[0]);
+    let h0 = pr.h(&root);
     open.push(Entry {
-        f: h0,
+        f: weight * h0,
         h: h0,
         order,
         node: 0,
     });
+    let (cell, yaw_cell) = (s.lattice.0, s.lattice.1.to_radians());
     let key = |f: &Foot| {
         (
-            (f.p.x / 0.02).round() as i64,
-            (f.p.y / 0.02).round() as i64,
-            (wrap(f.yaw).to_degrees() / 5.0).round() as i64,
+            (f.p.x / cell).round() as i64,
+            (f.p.y / cell).round() as i64,
+            (wrap(f.yaw) / yaw_cell).round() as i64,
             f.left,
         )
     };
+    // The cheapest way to each lattice cell so far. A cell reached again more cheaply is
+    // expanded again (reopening), so a pass of weight w stays within w of the optimum although
+    // the heuristic is not consistent.
     let mut best_g: HashMap<(i64, i64, i64, bool), f64> = HashMap::new();
-    let mut closed: HashMap<(i64, i64, i64, bool), ()> = HashMap::new();
-    let mut best_h = (h0, 0usize);
-    let mut found = None;
-    let mut why = "no foothold sequence reaches the goal";
+    best_g.insert(key(&root.stance), 0.0);
     while let Some(Entry { node, h: hn, .. }) = open.pop() {
         let n = nodes[node];
-        if mode == Mode::Improved {
-            let k = key(&n.stance);
-            if closed.insert(k, ()).is_some() {
-                continue;
-            }
+        if lattice && best_g.get(&key(&n.stance)).is_some_and(|&b| n.g > b) {
+            continue;
         }
-        if n.centre().dist(goal) < s.tolerance {
-            found = Some(node);
-            break;
+        if n.centre().dist(pr.goal) < s.tolerance {
+            return (Pass::Found(node), nodes);
         }
-        if hn < best_h.0 {
-            best_h = (hn, node);
+        if hn < best.0 {
+            *best = (hn, trace(&nodes, node));
         }
         if stats.expansions >= s.max_expansions {
-            why = "the expansion cap was reached";
-            break;
+            return (Pass::Stopped("the expansion cap was reached"), nodes);
         }
-        if mode == Mode::Improved && t1.elapsed() > s.budget {
-            why = "the time budget ran out";
-            break;
+        if stats.expansions.is_multiple_of(64) && Instant::now() > deadline {
+            return (Pass::Stopped("the time budget ran out"), nodes);
         }
         stats.expansions += 1;
-        for (f, c) in candidates(&n, &acts, s, goal, world, &mut stats) {
+        for (f, c) in pr.successors(&n, stats) {
             let child = Node {
                 stance: f,
                 other: n.stance,
                 g: n.g + c,
                 parent: Some(node),
             };
-            if mode == Mode::Improved {
+            if lattice {
                 let k = key(&f);
-                if closed.contains_key(&k) || best_g.get(&k).is_some_and(|&g| g <= child.g) {
+                if best_g.get(&k).is_some_and(|&g| g <= child.g) {
                     continue;
                 }
                 best_g.insert(k, child.g);
             }
-            let hc = h(&child);
+            let hc = pr.h(&child);
+            if child.g + hc >= incumbent {
+                continue;
+            }
             order += 1;
             nodes.push(child);
             open.push(Entry {
-                f: child.g + hc,
+                f: child.g + weight * hc,
                 h: hc,
                 order,
                 node: nodes.len() - 1,
             });
         }
     }
-    stats.search = t1.elapsed();
-    let (end, status) = match found {
-        Some(e) => (e, Status::Ok),
-        None if mode == Mode::Improved && best_h.1 != 0 => (best_h.1, Status::Partial),
-        None => return Plan::failed(Status::NoPath, why, stats),
-    };
+    (Pass::Exhausted, nodes)
+}
+
+/// The stance feet from the root to `end`.
+fn trace(nodes: &[Node], end: usize) -> Vec<Foot> {
     let mut feet = Vec::new();
-    let mut path = Vec::new();
     let mut at = Some(end);
     while let Some(i) = at {
         feet.push(nodes[i].stance);
-        path.push(nodes[i].centre());
         at = nodes[i].parent;
     }
-    feet.push(right);
     feet.reverse();
-    path.reverse();
-    Plan {
-        status,
-        detail: if status == Status::Ok {
-            String::new()
-        } else {
-            why.to_string()
-        },
-        path,
-        cost: nodes[end].g,
-        steps: feet,
-        stats,
+    feet
+}
+
+/// Plans from the robot standing at `start` (feet side by side, the right one to swing first)
+/// to `goal` (a position).
+pub fn plan(start: V2, start_yaw: f64, goal: V2, world: &World, mode: Mode, s: &Settings) -> Plan {
+    let t0 = Instant::now();
+    let p = &s.cost;
+    let mut stats = Stats::default();
+    let g = &world.grid;
+    if !g.contains(goal) {
+        return Plan::failed(Status::GoalOutsideMap, "the goal is outside the map", stats);
     }
+    let side = v2(-start_yaw.sin(), start_yaw.cos()) * (p.w_nom / 2.0);
+    let mut left = Foot {
+        p: start + side,
+        z: 0.0,
+        yaw: start_yaw,
+        left: true,
+    };
+    let mut right = Foot {
+        p: start - side,
+        z: 0.0,
+        yaw: start_yaw,
+        left: false,
+    };
+    for f in [&mut left, &mut right] {
+        stats.collision_queries += 1;
+        let under = g.height(f.p);
+        match world.foothold(f, under, &s.feasibility) {
+            Some(z) => f.z = z,
+            None => {
+                return Plan::failed(
+                    Status::StartInCollision,
+                    "a foot of the start is off the map, on unknown ground or on an edge",
+                    stats,
+                )
+            }
+        }
+    }
+    let ground = left.z.min(right.z);
+    let at_goal = g.height(goal);
+    if at_goal.is_nan() || at_goal > ground + s.feasibility.body_height {
+        return Plan::failed(
+            Status::GoalInCollision,
+            "the goal is on an obstacle or on unknown ground",
+            stats,
+        );
+    }
+    let acts = ordered_actions(p, s.actions);
+    let alpha = kaist::alpha(p, &acts);
+    let field = (s.heuristic == Heuristic::Dijkstra2d).then(|| {
+        // Every node's centre is the middle of a stance-to-swing ellipse, which is free of
+        // tall cells for FOOT.0 / 2 around it: the field keeps that far from them, less the
+        // cells' half-diagonal.
+        let limit = ground + s.feasibility.body_height;
+        let clear = FOOT.0 / 2.0 - g.res * std::f64::consts::FRAC_1_SQRT_2;
+        let mut open = g.clone();
+        open.h =
+            g.h.iter()
+                .map(|&h| if h.is_nan() || h <= limit { 0.0 } else { 1.0 })
+                .collect();
+        let mut grown = open.clone();
+        let r = (clear / g.res).floor() as i64;
+        for j in 0..g.ny as i64 {
+            for i in 0..g.nx as i64 {
+                if open.h[j as usize * g.nx + i as usize] == 0.0 {
+                    continue;
+                }
+                for b in -r..=r {
+                    for a in -r..=r {
+                        let (x, y) = (i + a, j + b);
+                        if ((a * a + b * b) as f64).sqrt() * g.res <= clear
+                            && x >= 0
+                            && y >= 0
+                            && (x as usize) < g.nx
+                            && (y as usize) < g.ny
+                        {
+                            grown.h[y as usize * g.nx + x as usize] = 1.0;
+                        }
+                    }
+                }
+            }
+        }
+        grown.distance_field(goal, |h| h == 0.0)
+    });
+    let lattice = mode == Mode::Improved;
+    stats.prepare = t0.elapsed();
+    let t1 = Instant::now();
+    let pr = Problem {
+        world,
+        s,
+        acts,
+        alpha,
+        goal,
+        field,
+        lattice,
+        deadline: t1 + s.budget,
+    };
+    let root = Node {
+        stance: left,
+        other: right,
+        g: 0.0,
+        parent: None,
+    };
+    let weights = if lattice {
+        s.weights.clone()
+    } else {
+        vec![1.0]
+    };
+    let mut best_partial = (f64::INFINITY, vec![left]);
+    let mut incumbent: Option<(f64, Vec<Foot>, Vec<V2>, f64)> = None;
+    let mut why = "no foothold sequence reaches the goal";
+    for &w in &weights {
+        let cap = incumbent.as_ref().map_or(f64::INFINITY, |b| b.0);
+        let (end, nodes) = pass(&pr, root, w, cap, &mut stats, &mut best_partial);
+        match end {
+            Pass::Found(e) => {
+                stats.first_plan.get_or_insert(t1.elapsed());
+                stats.first_plan_expansions.get_or_insert(stats.expansions);
+                let feet = trace(&nodes, e);
+                let mut path = Vec::new();
+                let mut at = Some(e);
+                while let Some(i) = at {
+                    path.push(nodes[i].centre());
+                    at = nodes[i].parent;
+                }
+                path.reverse();
+                incumbent = Some((nodes[e].g, feet, path, w));
+            }
+            // Nothing cheaper than the incumbent within this weight: it stands, bound w.
+            Pass::Exhausted => {
+                if let Some(b) = incumbent.as_mut() {
+                    b.3 = w;
+                } else {
+                    break;
+                }
+            }
+            Pass::Stopped(reason) => {
+                why = reason;
+                break;
+            }
+        }
+    }
+    stats.search = t1.elapsed();
+    let admissible = matches!(
+        s.heuristic,
+        Heuristic::Zero | Heuristic::EnergyBound | Heuristic::Dijkstra2d
+    );
+    match incumbent {
+        Some((cost, feet, path, w)) => Plan {
+            status: Status::Ok,
+            detail: String::new(),
+            path,
+            cost,
+            steps: std::iter::once(right).chain(feet).collect(),
+            stats,
+            bound: (lattice && admissible).then_some(w),
+        },
+        None if lattice && best_partial.1.len() > 1 => {
+            let feet = best_partial.1;
+            let mut path = Vec::new();
+            let mut prev = right;
+            for f in &feet {
+                path.push((f.p + prev.p) * 0.5);
+                prev = *f;
+            }
+            let mut cost = 0.0;
+            let mut steps = vec![right];
+            steps.extend(feet);
+            for w in steps.windows(2).skip(1) {
+                // The cost of each step, from the action's geometry.
+                cost += step_energy(&w[0], &w[1], p);
+            }
+            Plan {
+                status: Status::Partial,
+                detail: why.to_string(),
+                path,
+                cost,
+                steps,
+                stats,
+                bound: None,
+            }
+        }
+        None => Plan::failed(Status::NoPath, why, stats),
+    }
+}
+
+/// The successors the search would make from the stance foot `stance` with the other foot at
+/// `other`, towards `goal`: each new foot (with the height it rests on) and the step's energy.
+pub fn successors(
+    world: &World,
+    s: &Settings,
+    goal: V2,
+    stance: Foot,
+    other: Foot,
+) -> Vec<(Foot, f64)> {
+    let acts = ordered_actions(&s.cost, s.actions);
+    let pr = Problem {
+        world,
+        s,
+        alpha: kaist::alpha(&s.cost, &acts),
+        acts,
+        goal,
+        field: None,
+        lattice: true,
+        deadline: Instant::now(),
+    };
+    let n = Node {
+        stance,
+        other,
+        g: 0.0,
+        parent: None,
+    };
+    pr.successors(&n, &mut Stats::default())
+}
+
+/// The energy of the step that places `swing` from `stance`.
+fn step_energy(stance: &Foot, swing: &Foot, p: &CostParams) -> f64 {
+    let dir = V2::polar(stance.yaw);
+    let r = swing.p - stance.p;
+    let (dx, dy) = (r.dot(dir), r.cross(dir).abs());
+    let a = Action {
+        dx: if dx.abs() < 1e-9 { 0.0 } else { dx },
+        dy,
+        dtheta: wrap(swing.yaw - stance.yaw),
+        subset: Subset::Forward,
+    };
+    a.energy_mg(p) * p.mg()
 }

@@ -7,6 +7,7 @@
 
 pub mod archie;
 pub mod geom;
+pub mod grid;
 pub mod kaist;
 pub mod kaist_search;
 pub mod node;

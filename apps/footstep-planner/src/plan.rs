@@ -1,5 +1,6 @@
 //! What every planner answers.
 
+use std::cmp::Ordering;
 use std::time::Duration;
 
 use crate::geom::V2;
@@ -48,6 +49,11 @@ pub struct Stats {
     pub prepare: Duration,
     /// Time to search.
     pub search: Duration,
+    /// Time from the start of the search to its first plan (anytime searches improve it
+    /// afterwards).
+    pub first_plan: Option<Duration>,
+    /// Nodes expanded up to the first plan.
+    pub first_plan_expansions: Option<u64>,
 }
 
 /// A foot placement.
@@ -55,6 +61,8 @@ pub struct Stats {
 pub struct Foot {
     /// Position of the foot (its reference point), m.
     pub p: V2,
+    /// Height of the ground under it, m.
+    pub z: f64,
     /// Heading, rad.
     pub yaw: f64,
     /// True for the left foot.
@@ -76,6 +84,9 @@ pub struct Plan {
     pub steps: Vec<Foot>,
     /// What the search cost.
     pub stats: Stats,
+    /// The suboptimality bound: the cost is at most this times the optimum on the planner's
+    /// graph (1 for an optimal plan; `None` when the planner gives no bound).
+    pub bound: Option<f64>,
 }
 
 impl Plan {
@@ -88,6 +99,26 @@ impl Plan {
             cost: f64::INFINITY,
             steps: Vec::new(),
             stats,
+            bound: None,
         }
+    }
+}
+
+/// An entry of a least-cost-first `BinaryHeap`: a cost and an index, least cost first, then
+/// least index (deterministic).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Least(pub f64, pub usize);
+
+impl Eq for Least {}
+
+impl Ord for Least {
+    fn cmp(&self, o: &Self) -> Ordering {
+        o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
+    }
+}
+
+impl PartialOrd for Least {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
     }
 }

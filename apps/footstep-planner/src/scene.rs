@@ -27,6 +27,9 @@ pub struct Pose {
     /// Heading, rad.
     #[serde(default)]
     pub yaw: f64,
+    /// Height of the ground under it, m.
+    #[serde(default)]
+    pub z: f64,
 }
 
 impl Pose {
@@ -51,6 +54,10 @@ pub enum Obstacle {
         /// Height, m (infinite when absent).
         #[serde(default)]
         height: Option<f64>,
+
+        /// Height of its bottom, m (0 when absent; the top is base + height).
+        #[serde(default)]
+        base: f64,
     },
     /// An upright box.
     Box {
@@ -68,6 +75,10 @@ pub enum Obstacle {
         /// Height, m (infinite when absent).
         #[serde(default)]
         height: Option<f64>,
+
+        /// Height of its bottom, m (0 when absent; the top is base + height).
+        #[serde(default)]
+        base: f64,
     },
     /// An extruded convex polygon.
     Polygon {
@@ -76,14 +87,43 @@ pub enum Obstacle {
         /// Height, m (infinite when absent).
         #[serde(default)]
         height: Option<f64>,
+
+        /// Height of its bottom, m (0 when absent; the top is base + height).
+        #[serde(default)]
+        base: f64,
+    },
+    /// A sphere (LOLA's swept-sphere primitive of radius r around a point).
+    Sphere {
+        /// Centre, m.
+        centre: [f64; 3],
+        /// Radius, m.
+        radius: f64,
+    },
+    /// A capsule: the points within `radius` of the segment a-b.
+    Capsule {
+        /// One end of the axis, m.
+        a: [f64; 3],
+        /// The other end, m.
+        b: [f64; 3],
+        /// Radius, m.
+        radius: f64,
+    },
+    /// A rounded triangle: the points within `radius` of a triangle.
+    RoundedTriangle {
+        /// The triangle's corners, m.
+        points: [[f64; 3]; 3],
+        /// Radius, m.
+        radius: f64,
     },
 }
 
 impl Obstacle {
-    /// Its footprint as a convex polygon (counter-clockwise), or `None` for a circle.
+    /// Its footprint as a convex polygon (counter-clockwise), or `None` for a circle or a
+    /// sphere. Capsules and rounded triangles come as their hull circumscribed by a 16-gon per
+    /// rounded end, so the polygon covers the shape.
     pub fn polygon(&self) -> Option<Vec<V2>> {
         match self {
-            Obstacle::Circle { .. } => None,
+            Obstacle::Circle { .. } | Obstacle::Sphere { .. } => None,
             Obstacle::Box {
                 x,
                 y,
@@ -107,6 +147,44 @@ impl Obstacle {
             Obstacle::Polygon { points, .. } => {
                 Some(points.iter().map(|p| v2(p[0], p[1])).collect())
             }
+            Obstacle::Capsule { a, b, radius } => {
+                Some(rounded_hull(&[v2(a[0], a[1]), v2(b[0], b[1])], *radius))
+            }
+            Obstacle::RoundedTriangle { points, radius } => {
+                Some(rounded_hull(&points.map(|p| v2(p[0], p[1])), *radius))
+            }
+        }
+    }
+
+    /// Height of its bottom, m.
+    pub fn bottom(&self) -> f64 {
+        match self {
+            Obstacle::Circle { base, .. }
+            | Obstacle::Box { base, .. }
+            | Obstacle::Polygon { base, .. } => *base,
+            Obstacle::Sphere { centre, radius } => centre[2] - radius,
+            Obstacle::Capsule { a, b, radius } => a[2].min(b[2]) - radius,
+            Obstacle::RoundedTriangle { points, radius } => {
+                points.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min) - radius
+            }
+        }
+    }
+
+    /// Height of its top, m (infinite for an extruded shape of no given height).
+    pub fn top(&self) -> f64 {
+        match self {
+            Obstacle::Circle { base, height, .. }
+            | Obstacle::Box { base, height, .. }
+            | Obstacle::Polygon { base, height, .. } => base + height.unwrap_or(f64::INFINITY),
+            Obstacle::Sphere { centre, radius } => centre[2] + radius,
+            Obstacle::Capsule { a, b, radius } => a[2].max(b[2]) + radius,
+            Obstacle::RoundedTriangle { points, radius } => {
+                points
+                    .iter()
+                    .map(|p| p[2])
+                    .fold(f64::NEG_INFINITY, f64::max)
+                    + radius
+            }
         }
     }
 
@@ -119,6 +197,10 @@ impl Obstacle {
                 c: v2(*x, *y),
                 r: *radius,
             },
+            Obstacle::Sphere { centre, radius } => Circle {
+                c: v2(centre[0], centre[1]),
+                r: *radius,
+            },
             Obstacle::Box {
                 x,
                 y,
@@ -129,19 +211,103 @@ impl Obstacle {
                 c: v2(*x, *y),
                 r: 0.5 * length.hypot(*width),
             },
-            Obstacle::Polygon { points, .. } => {
-                let n = points.len().max(1) as f64;
-                let c = points
-                    .iter()
-                    .fold(v2(0.0, 0.0), |a, p| a + v2(p[0], p[1]) * (1.0 / n));
-                let r = points
-                    .iter()
-                    .map(|p| c.dist(v2(p[0], p[1])))
-                    .fold(0.0, f64::max);
+            Obstacle::Polygon { .. }
+            | Obstacle::Capsule { .. }
+            | Obstacle::RoundedTriangle { .. } => {
+                let pts = self.polygon().unwrap_or_default();
+                let n = pts.len().max(1) as f64;
+                let c = pts.iter().fold(v2(0.0, 0.0), |a, p| a + *p * (1.0 / n));
+                let r = pts.iter().map(|p| c.dist(*p)).fold(0.0, f64::max);
                 Circle { c, r }
             }
         }
     }
+}
+
+/// The convex hull of `pts` grown by `r`, each rounded end circumscribed by 16-gon arcs,
+/// counter-clockwise.
+fn rounded_hull(pts: &[V2], r: f64) -> Vec<V2> {
+    let k = 16;
+    let rr = r / (std::f64::consts::PI / k as f64).cos();
+    let mut cloud = Vec::new();
+    for p in pts {
+        for i in 0..k {
+            let t = std::f64::consts::TAU * (i as f64 + 0.5) / k as f64;
+            cloud.push(*p + V2::polar(t) * rr);
+        }
+    }
+    convex_hull(cloud)
+}
+
+/// The convex hull of a point set, counter-clockwise (Andrew's monotone chain).
+pub fn convex_hull(mut pts: Vec<V2>) -> Vec<V2> {
+    pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    pts.dedup_by(|a, b| a.dist(*b) < 1e-12);
+    if pts.len() < 3 {
+        return pts;
+    }
+    let mut lower: Vec<V2> = Vec::new();
+    for p in &pts {
+        while lower.len() >= 2
+            && (lower[lower.len() - 1] - lower[lower.len() - 2]).cross(*p - lower[lower.len() - 2])
+                <= 0.0
+        {
+            lower.pop();
+        }
+        lower.push(*p);
+    }
+    let mut upper: Vec<V2> = Vec::new();
+    for p in pts.iter().rev() {
+        while upper.len() >= 2
+            && (upper[upper.len() - 1] - upper[upper.len() - 2]).cross(*p - upper[upper.len() - 2])
+                <= 0.0
+        {
+            upper.pop();
+        }
+        upper.push(*p);
+    }
+    lower.pop();
+    upper.pop();
+    lower.extend(upper);
+    lower
+}
+
+/// A steppable surface: a convex polygon at a height.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Surface {
+    /// What it is.
+    #[serde(default)]
+    pub name: String,
+    /// Corners, counter-clockwise, m (3 to 8).
+    pub points: Vec<[f64; 2]>,
+    /// Height of its top, m.
+    pub height: f64,
+}
+
+impl Surface {
+    /// Its corners.
+    pub fn polygon(&self) -> Vec<V2> {
+        self.points.iter().map(|p| v2(p[0], p[1])).collect()
+    }
+}
+
+/// The map: its extent, and an optional elevation grid file.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapSpec {
+    /// x range, m.
+    pub x: [f64; 2],
+    /// y range, m.
+    pub y: [f64; 2],
+    /// Cell size, m (0.05 when absent).
+    #[serde(default)]
+    pub resolution: Option<f64>,
+    /// Elevation file (CSV of heights in m, `nan` for unknown), relative to the scene file:
+    /// one line per row of cells, the first line the row of greatest y (as an image shows
+    /// it), one column per cell from the least x. Its size must match the extent and cell.
+    #[serde(default)]
+    pub elevation: Option<String>,
 }
 
 /// A scene.
@@ -160,6 +326,20 @@ pub struct Scene {
     /// Obstacles.
     #[serde(default)]
     pub obstacle: Vec<Obstacle>,
+    /// Steppable surfaces.
+    #[serde(default)]
+    pub surface: Vec<Surface>,
+    /// The robot's parameter set, for planners that have several (the KAIST planner:
+    /// `kaist_sim`, the default, or `kaist_real`).
+    #[serde(default)]
+    pub params: Option<String>,
+    /// The map's extent and elevation (when absent: the scene's bounding box and flat
+    /// ground).
+    #[serde(default)]
+    pub map: Option<MapSpec>,
+    /// The directory of the scene file (for the elevation file).
+    #[serde(skip)]
+    pub dir: std::path::PathBuf,
 }
 
 /// Why a scene file cannot be read.
@@ -181,6 +361,14 @@ pub enum SceneError {
         /// What went wrong.
         error: toml::de::Error,
     },
+    /// Read, but not a valid scene.
+    #[error("{path}: {why}")]
+    Invalid {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        why: String,
+    },
 }
 
 impl Scene {
@@ -191,7 +379,59 @@ impl Scene {
             path: p.clone(),
             error,
         })?;
-        toml::from_str(&text).map_err(|error| SceneError::Toml { path: p, error })
+        let mut scene: Scene = toml::from_str(&text).map_err(|error| SceneError::Toml {
+            path: p.clone(),
+            error,
+        })?;
+        scene.dir = path.parent().map(|d| d.to_path_buf()).unwrap_or_default();
+        scene
+            .check()
+            .map_err(|why| SceneError::Invalid { path: p, why })?;
+        Ok(scene)
+    }
+
+    /// Reads a scene from TOML text (an elevation file is looked for in `dir`).
+    pub fn parse(text: &str, dir: &std::path::Path) -> Result<Scene, SceneError> {
+        let mut scene: Scene = toml::from_str(text).map_err(|error| SceneError::Toml {
+            path: "<text>".into(),
+            error,
+        })?;
+        scene.dir = dir.to_path_buf();
+        scene.check().map_err(|why| SceneError::Invalid {
+            path: "<text>".into(),
+            why,
+        })?;
+        Ok(scene)
+    }
+
+    fn check(&self) -> Result<(), String> {
+        for (i, s) in self.surface.iter().enumerate() {
+            if !(3..=8).contains(&s.points.len()) {
+                return Err(format!(
+                    "surface {} has {} corners (3 to 8)",
+                    i + 1,
+                    s.points.len()
+                ));
+            }
+            let q = s.polygon();
+            let n = q.len();
+            if (0..n).any(|k| (q[(k + 1) % n] - q[k]).cross(q[(k + 2) % n] - q[(k + 1) % n]) < 0.0)
+            {
+                return Err(format!(
+                    "surface {} is not convex and counter-clockwise",
+                    i + 1
+                ));
+            }
+        }
+        if let Some(m) = &self.map {
+            if !(m.x[0] < m.x[1] && m.y[0] < m.y[1]) {
+                return Err("the map's x and y ranges must be increasing".into());
+            }
+            if m.resolution.is_some_and(|r| r.is_nan() || r <= 0.0) {
+                return Err("the map's resolution must be positive".into());
+            }
+        }
+        Ok(())
     }
 
     /// Every obstacle as a circle (see [`Obstacle::bounding_circle`]).

@@ -52,6 +52,7 @@ fn feet(hip0: V2, s: &[Walk]) -> Vec<Foot> {
         hip = hip + v2(th.cos(), th.sin()) * sx;
         let sign = if jj % 2 == 1 { -1.0 } else { 1.0 }; // (-1)^jj
         out.push(Foot {
+            z: 0.0,
             p: hip + v2(sign * th.sin() * sy, -sign * th.cos() * sy),
             yaw: th,
             left: jj % 2 == 1,
@@ -69,6 +70,7 @@ pub fn faithful(waypoints: &[V2], dirs: &[f64], p: &StepParams, first_foot_bug: 
     let py = -my;
     let px = if first_foot_bug { py + w0.x } else { w0.x };
     let mut out = vec![Foot {
+        z: 0.0,
         p: v2(px, py + w0.y),
         yaw: 0.0,
         left: false,
@@ -106,6 +108,7 @@ pub fn improved(waypoints: &[V2], start_yaw: f64, p: &StepParams) -> Vec<Foot> {
     let my = p.half_stance;
     let w0 = waypoints[0];
     let mut out = vec![Foot {
+        z: 0.0,
         p: w0 + v2(start_yaw.sin() * my, -start_yaw.cos() * my),
         yaw: start_yaw,
         left: false,

@@ -50,16 +50,7 @@ pub fn render(
     let (w, h) = (hi.x - lo.x + 2.0 * m, hi.y - lo.y + 2.0 * m);
     let scale = 120.0; // px per metre
     let px = |p: V2| ((p.x - lo.x + m) * scale, (hi.y - p.y + m) * scale);
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{:.0}" height="{:.0}" viewBox="0 0 {:.0} {:.0}" font-family="sans-serif">"#,
-        w * scale,
-        h * scale + 40.0,
-        w * scale,
-        h * scale + 40.0
-    );
-    let _ = writeln!(s, r##"<rect width="100%" height="100%" fill="#ffffff"/>"##);
+    let mut s = header(w * scale, h * scale + 40.0);
     for c in obstacles {
         let (x, y) = px(c.c);
         let _ = writeln!(
@@ -73,6 +64,53 @@ pub fn render(
             c.r * scale
         );
     }
+    let caption = format!(
+        "{}: {}, cost {:.3} m, {} steps, {} expansions",
+        escape(title),
+        plan.status.name(),
+        plan.cost,
+        plan.steps.len(),
+        plan.stats.expansions
+    );
+    overlay(
+        &mut s,
+        plan,
+        start,
+        goal,
+        foot_offset,
+        scale,
+        &px,
+        h * scale + 25.0,
+        &caption,
+    );
+    s.push_str("</svg>\n");
+    s
+}
+
+/// The document's opening and a white background, `w` × `h` pixels.
+fn header(w: f64, h: f64) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w:.0}" height="{h:.0}" viewBox="0 0 {w:.0} {h:.0}" font-family="sans-serif">"#
+    );
+    let _ = writeln!(s, r##"<rect width="100%" height="100%" fill="#ffffff"/>"##);
+    s
+}
+
+/// The path, the footprints, start and goal, and the caption.
+#[allow(clippy::too_many_arguments)]
+fn overlay(
+    s: &mut String,
+    plan: &Plan,
+    start: V2,
+    goal: V2,
+    foot_offset: f64,
+    scale: f64,
+    px: &dyn Fn(V2) -> (f64, f64),
+    caption_y: f64,
+    caption: &str,
+) {
     if plan.path.len() > 1 {
         let pts: Vec<String> = plan
             .path
@@ -89,7 +127,7 @@ pub fn render(
         );
     }
     for (k, f) in plan.steps.iter().enumerate() {
-        footprint(&mut s, k, f, foot_offset, scale, &px);
+        footprint(s, k, f, foot_offset, scale, &px);
     }
     for (p, colour, label) in [(start, "#20a040", "start"), (goal, "#d03030", "goal")] {
         let (x, y) = px(p);
@@ -102,13 +140,64 @@ pub fn render(
     }
     let _ = writeln!(
         s,
-        r##"<text x="8" y="{:.0}" font-size="14" fill="#000000">{}: {}, cost {:.3} m, {} steps, {} expansions</text>"##,
-        h * scale + 25.0,
+        r##"<text x="8" y="{caption_y:.0}" font-size="14" fill="#000000">{caption}</text>"##
+    );
+}
+
+/// Draws `plan` on an elevation grid (grey by height up to 0.3 m, black above, pink where
+/// unknown), from `start` to `goal`, titled; the cost is in `unit`.
+pub fn render_grid(
+    title: &str,
+    grid: &crate::grid::Grid,
+    start: V2,
+    goal: V2,
+    plan: &Plan,
+    unit: &str,
+) -> String {
+    let scale = 100.0;
+    let (w, h) = (grid.nx as f64 * grid.res, grid.ny as f64 * grid.res);
+    let lo = grid.origin;
+    let px = |p: V2| ((p.x - lo.x) * scale, (lo.y + h - p.y) * scale);
+    let mut s = header(w * scale, h * scale + 40.0);
+    let cell = grid.res * scale;
+    for j in 0..grid.ny {
+        for i in 0..grid.nx {
+            let z = grid.h[j * grid.nx + i];
+            let fill = if z.is_nan() {
+                "#f4c0d0".to_string()
+            } else if z.abs() < 1e-9 {
+                continue;
+            } else {
+                let g = (230.0 * (1.0 - (z / 0.3).clamp(0.0, 1.0))) as u8;
+                format!("#{g:02x}{g:02x}{g:02x}")
+            };
+            let (x, y) = px(grid.centre(i, j));
+            let _ = writeln!(
+                s,
+                r#"<rect x="{:.1}" y="{:.1}" width="{cell:.1}" height="{cell:.1}" fill="{fill}"/>"#,
+                x - cell / 2.0,
+                y - cell / 2.0
+            );
+        }
+    }
+    let caption = format!(
+        "{}: {}, cost {:.1} {unit}, {} steps, {} expansions",
         escape(title),
         plan.status.name(),
         plan.cost,
-        plan.steps.len(),
+        plan.steps.len().saturating_sub(2),
         plan.stats.expansions
+    );
+    overlay(
+        &mut s,
+        plan,
+        start,
+        goal,
+        0.0,
+        scale,
+        &px,
+        h * scale + 25.0,
+        &caption,
     );
     s.push_str("</svg>\n");
     s
