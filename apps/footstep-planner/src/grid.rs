@@ -277,6 +277,37 @@ impl Grid {
         Some(top)
     }
 
+    /// Down a distance field from `p`: the cell the steepest way reaches once the distance
+    /// has dropped by `ahead` (or the goal's), if `p` is on the map and reaches the goal.
+    pub fn descent(&self, field: &[f64], p: V2, ahead: f64) -> Option<V2> {
+        let (i, j) = self.cell(p)?;
+        let k0 = j * self.nx + i;
+        if !field[k0].is_finite() {
+            return None;
+        }
+        let mut k = k0;
+        while field[k0] - field[k] < ahead && field[k] > 0.0 {
+            let (ci, cj) = ((k % self.nx) as i64, (k / self.nx) as i64);
+            let mut next = (field[k], k);
+            for a in -2i64..=2 {
+                for b in -2i64..=2 {
+                    let (x, y) = (ci + a, cj + b);
+                    if x >= 0 && y >= 0 && (x as usize) < self.nx && (y as usize) < self.ny {
+                        let nk = y as usize * self.nx + x as usize;
+                        if field[nk] < next.0 {
+                            next = (field[nk], nk);
+                        }
+                    }
+                }
+            }
+            if next.1 == k {
+                break;
+            }
+            k = next.1;
+        }
+        (k != k0).then(|| self.centre(k % self.nx, k / self.nx))
+    }
+
     /// Distances from every cell to `goal` along 16-connected moves (Euclidean lengths)
     /// through cells that `passable` accepts; infinite where no such path is. Row by row from
     /// the least y, as [`Grid::h`].

@@ -500,19 +500,7 @@ pub fn plan(start: V2, start_yaw: f64, goal: V2, world: &World, mode: Mode, s: &
     if !g.contains(goal) {
         return Plan::failed(Status::GoalOutsideMap, "the goal is outside the map", stats);
     }
-    let side = v2(-start_yaw.sin(), start_yaw.cos()) * (p.w_nom / 2.0);
-    let mut left = Foot {
-        p: start + side,
-        z: 0.0,
-        yaw: start_yaw,
-        left: true,
-    };
-    let mut right = Foot {
-        p: start - side,
-        z: 0.0,
-        yaw: start_yaw,
-        left: false,
-    };
+    let (mut left, mut right) = Foot::standing(start, start_yaw, p.w_nom);
     for f in [&mut left, &mut right] {
         stats.collision_queries += 1;
         let under = g.height(f.p);

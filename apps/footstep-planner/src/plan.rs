@@ -69,6 +69,24 @@ pub struct Foot {
     pub left: bool,
 }
 
+impl Foot {
+    /// The two feet of a robot standing with its centre at `centre`, facing `yaw`, feet
+    /// `width` apart on the ground: (left, right).
+    pub fn standing(centre: V2, yaw: f64, width: f64) -> (Foot, Foot) {
+        let side = V2 {
+            x: -yaw.sin(),
+            y: yaw.cos(),
+        } * (width / 2.0);
+        let foot = |p: V2, left: bool| Foot {
+            p,
+            z: 0.0,
+            yaw,
+            left,
+        };
+        (foot(centre + side, true), foot(centre - side, false))
+    }
+}
+
 /// A planner's answer.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plan {

@@ -13,7 +13,14 @@ use stride_footstep_planner::scene::Scene;
 use stride_footstep_planner::steps::{self, StepParams};
 use stride_footstep_planner::svg;
 
-/// Plan one scene, or every scene of a directory, with Archie's planner in its faithful mode
+mod kaist;
+
+/// Plan one scene, or every scene of a directory, side by side in each planner's modes. The
+/// planner follows the scene's name: `kaist-*` scenes go to the KAIST planner (the thesis's
+/// tree search and the improved anytime lattice search, on the scene's elevation grid), all
+/// others to Archie's.
+///
+/// Archie's planner plans in its faithful mode
 /// (the thesis's tangent tree and footsteps, obstacles grown by 0.1 m), in its improved mode on
 /// the same grown obstacles (the exact shortest path, improved footsteps: "same"), and in its
 /// improved mode with its own, footprint-safe growth of 0.215 m ("improved").
@@ -23,7 +30,9 @@ use stride_footstep_planner::svg;
 /// path length, the exact optimum and the ratio, steps, expansions, generated successors,
 /// collision queries, preparation and search time) to --out/plans.csv. With --repeats N each
 /// plan runs N times and the CSV gives the median and 99th-percentile times; --table prints
-/// the same as a Markdown table.
+/// the same as a Markdown table. KAIST scenes go to --out/kaist.csv (cost in J, steps,
+/// expansions in all and to the first plan, the anytime bound, times to the first plan and in
+/// all) and SVGs on the elevation grid.
 #[derive(Parser, Debug)]
 #[command(version, about, long_about)]
 struct Cli {
@@ -42,6 +51,9 @@ struct Cli {
     /// No SVGs.
     #[arg(long)]
     no_svg: bool,
+    /// Time budget of the KAIST planner's improved (anytime) mode, ms.
+    #[arg(long, default_value_t = 200)]
+    budget_ms: u64,
 }
 
 struct Row {
@@ -75,7 +87,8 @@ fn scene_files(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
     Ok(out)
 }
 
-fn pct(v: &mut [f64], p: f64) -> f64 {
+/// The `p`th percentile of `v` (sorted in place).
+pub fn pct(v: &mut [f64], p: f64) -> f64 {
     v.sort_by(f64::total_cmp);
     v[((p / 100.0) * (v.len() - 1) as f64).round() as usize]
 }
@@ -126,9 +139,22 @@ fn main() -> anyhow::Result<()> {
         ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").expect("a valid template"),
     );
     let mut rows = Vec::new();
+    let mut kaist_rows = Vec::new();
+    let budget = std::time::Duration::from_millis(cli.budget_ms);
     for f in &files {
         let scene = Scene::load(f)?;
         bar.set_message(scene.name.clone());
+        if scene.name.starts_with("kaist") {
+            kaist_rows.extend(kaist::run(
+                &scene,
+                cli.repeats,
+                budget,
+                &cli.out,
+                cli.no_svg,
+            )?);
+            bar.inc(1);
+            continue;
+        }
         for mode in ["faithful", "same", "improved"] {
             let (plan, mut times, params) = run(&scene, mode, cli.repeats);
             let optimum = exact_length(scene.start.p(), scene.goal.p(), &scene.circles(), &params)
@@ -161,6 +187,33 @@ fn main() -> anyhow::Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
+    if !kaist_rows.is_empty() {
+        kaist::write_csv(&cli.out.join("kaist.csv"), &mut kaist_rows)?;
+        if cli.table {
+            kaist::print_table(&mut kaist_rows, cli.repeats, budget);
+        } else {
+            for r in &kaist_rows {
+                println!(
+                    "{:<16} {:<9} {:<10} cost {:>9.0} J {:>3} steps {:>7} expansions bound {}",
+                    r.scene,
+                    r.mode,
+                    r.plan.status.name(),
+                    r.plan.cost,
+                    r.plan.steps.len().saturating_sub(2),
+                    r.plan.stats.expansions,
+                    r.plan.bound.map_or("-".into(), |b| b.to_string()),
+                );
+            }
+            println!(
+                "wrote {} and the SVGs to {}",
+                cli.out.join("kaist.csv").display(),
+                cli.out.display()
+            );
+        }
+    }
+    if rows.is_empty() {
+        return Ok(());
+    }
     write_csv(&cli.out.join("plans.csv"), &rows)?;
     if cli.table {
         print_table(&rows, cli.repeats);

@@ -1,0 +1,819 @@
+//! LOLA's footstep planner (seed 002 §4, the notes' sections 2, 3 and 8): A* over footholds
+//! (x, y, z, yaw, side) on steppable surfaces, a 3-D swing check of the foot and shank
+//! swept-sphere model, a 2-D pre-planner coupled to the search, and a deadline.
+//!
+//! - Footholds: the sole (0.22 × 0.12 m) lies wholly on one surface (its height is the foot's
+//!   z) or wholly on the floor (z = 0) and inside the map; a sole across a surface's edge is
+//!   refused (the thesis makes edges obstacles; V3). The foot's SSVs keep clear of every
+//!   obstacle. Up or down at most `max_step_height`.
+//! - Steps: 85 suggestions around the desired step (17 positions: the 3 × 3 ring of ±0.10 m
+//!   ahead and ±0.05 m sideways and 8 at twice that, by 5 turns of 0, ±0.1, ±0.2 rad), within
+//!   the limits; the reduced set keeps 34. Each maps to the swing foot's pose along a circular
+//!   path (the turn spread over the step).
+//! - The swing: the foot and shank SSVs swept along the straight line from the old foothold to
+//!   the new one at a low reference height, sampled every 5 cm. The highest obstacle they meet
+//!   is the step's `h_obst`; over `h_max` the step is refused (P4).
+//! - Cost (Eq. 4.6-4.11): the desired step's length plus k = 1.5 times the weighted distance
+//!   of the step from the desired one (W = diag(1, 1, 0.2 m/rad)); heuristic: the weighted
+//!   distance of the mid-stance point and heading from the goal. Consistent for k ≥ 1.
+//! - faithful ([`Mode::Thesis`]): the thesis's search tree (no duplicate detection), its
+//!   heuristic, no pre-planner coupling; at the budget it falls back to stepping in place.
+//! - improved ([`Mode::Improved`]): duplicate detection on a lattice (0.05 m, 5°, side), the
+//!   2-D pre-planner (a distance field over the tall obstacles, grown by a margin) coupled as
+//!   heuristic (the way's length: coupling 1) and as desired heading (the way's direction:
+//!   coupling 3), an optional horizon (the thesis's 7 steps), and the deadline: at the budget
+//!   the best partial plan, or steps in place when none gets nearer.
+
+use std::collections::{BinaryHeap, HashMap};
+use std::time::{Duration, Instant};
+
+use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
+
+use crate::geom::{convex_overlap, v2, wrap, V2};
+use crate::grid::Grid;
+use crate::plan::{Foot, Least, Plan, Stats, Status};
+use crate::scene::{Obstacle, Scene};
+use crate::ssv::{overlaps, Solid, P3};
+
+/// The robot: foot, shank and step limits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Robot {
+    /// Sole length and width, m.
+    pub foot: (f64, f64),
+    /// Radius of the sole's two rounded triangles, m.
+    pub sole_radius: f64,
+    /// Ankle height above the sole, m.
+    pub ankle: f64,
+    /// Shank length (ankle to knee), m.
+    pub shank: f64,
+    /// Shank radius, m.
+    pub shank_radius: f64,
+    /// Centre of gravity height (for the shank's tilt), m.
+    pub cog_height: f64,
+    /// Nominal distance between the feet, m.
+    pub width: f64,
+    /// Highest obstacle a swing may step over, m.
+    pub h_max: f64,
+    /// Largest step up or down, m.
+    pub max_step_height: f64,
+    /// The swing's reference height above the higher foothold, m.
+    pub swing_height: f64,
+}
+
+impl Default for Robot {
+    /// LOLA's proportions (the thesis gives no sizes: anthropometric for 1.80 m, see the
+    /// module's doc).
+    fn default() -> Self {
+        Robot {
+            foot: (0.22, 0.12),
+            sole_radius: 0.02,
+            ankle: 0.10,
+            shank: 0.44,
+            shank_radius: 0.06,
+            cog_height: 0.88,
+            width: 0.20,
+            h_max: 0.15,
+            max_step_height: 0.15,
+            swing_height: 0.02,
+        }
+    }
+}
+
+/// Which planner.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// The thesis's search tree and heuristic, no coupling.
+    Thesis,
+    /// Lattice, the pre-planner's couplings, best partial plan at the deadline.
+    Improved,
+}
+
+/// The settings of a search.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    /// The robot.
+    pub robot: Robot,
+    /// Desired step: advance, extra width, turn (m, m, rad).
+    pub desired: (f64, f64, f64),
+    /// k of the step cost.
+    pub k: f64,
+    /// Weight of the heading, m/rad.
+    pub w_theta: f64,
+    /// The 34-suggestion set instead of 85.
+    pub reduced: bool,
+    /// Goal tolerance: position (m) and heading (rad) of the mid-stance point.
+    pub tolerance: (f64, f64),
+    /// The search stops at this many steps (the receding horizon), if set.
+    pub horizon: Option<usize>,
+    /// Time budget.
+    pub budget: Duration,
+    /// Expansion cap.
+    pub max_expansions: u64,
+    /// Margin of the pre-planner's point robot around tall obstacles, m.
+    pub margin: f64,
+    /// Coupling 1: the pre-planner's way as heuristic.
+    pub couple_heuristic: bool,
+    /// Coupling 3: the pre-planner's way as desired heading.
+    pub couple_heading: bool,
+    /// The weights of the anytime passes (improved mode; the last should be 1).
+    pub weights: Vec<f64>,
+}
+
+impl Settings {
+    /// The defaults for `mode`: desired step 0.3 m, k 1.5, W_θ 0.2 m/rad, 85 suggestions,
+    /// tolerance 0.1 m and 0.1 rad, a budget of 400 ms (the thesis's navigation cycle), in
+    /// improved mode both couplings with a 0.1 m margin.
+    pub fn new(mode: Mode) -> Settings {
+        let improved = mode == Mode::Improved;
+        Settings {
+            robot: Robot::default(),
+            desired: (0.3, 0.0, 0.0),
+            k: 1.5,
+            w_theta: 0.2,
+            reduced: false,
+            tolerance: (0.1, 0.1),
+            horizon: None,
+            budget: Duration::from_millis(400),
+            max_expansions: 1_000_000,
+            margin: 0.1,
+            couple_heuristic: improved,
+            couple_heading: improved,
+            weights: vec![2.0, 1.5, 1.2, 1.0],
+        }
+    }
+}
+
+/// An obstacle as the planner keeps it.
+#[derive(Debug, Clone)]
+struct Thing {
+    solid: Solid,
+    aabb: Aabb,
+    top: f64,
+}
+
+/// The world: the map, the surfaces, the obstacles (with the surfaces' edges).
+#[derive(Debug, Clone)]
+pub struct World {
+    /// x and y ranges of the map, m.
+    pub map: ([f64; 2], [f64; 2]),
+    /// Steppable surfaces: corners and height.
+    pub surfaces: Vec<(Vec<V2>, f64)>,
+    things: Vec<Thing>,
+}
+
+/// Radius of a surface edge's capsule, m.
+pub const EDGE_RADIUS: f64 = 0.01;
+
+impl World {
+    /// The world of a scene (extruded polygons stand in as their bounding cylinders).
+    pub fn of(scene: &Scene) -> World {
+        let grid = Grid::of_scene(scene).ok();
+        let map = match (&scene.map, &grid) {
+            (Some(m), _) => (m.x, m.y),
+            (None, Some(g)) => (
+                [g.origin.x, g.origin.x + g.nx as f64 * g.res],
+                [g.origin.y, g.origin.y + g.ny as f64 * g.res],
+            ),
+            _ => ([-10.0, 10.0], [-10.0, 10.0]),
+        };
+        let mut things = Vec::new();
+        for o in &scene.obstacle {
+            let solid = match *o {
+                Obstacle::Sphere { centre, radius } => {
+                    Solid::sphere(P3::new(centre[0], centre[1], centre[2]), radius)
+                }
+                Obstacle::Capsule { a, b, radius } => {
+                    Solid::capsule(P3::new(a[0], a[1], a[2]), P3::new(b[0], b[1], b[2]), radius)
+                }
+                Obstacle::RoundedTriangle { points, radius } => {
+                    let p = points.map(|q| P3::new(q[0], q[1], q[2]));
+                    Solid::rounded_triangle(p[0], p[1], p[2], radius)
+                }
+                Obstacle::Box {
+                    x,
+                    y,
+                    yaw,
+                    length,
+                    width,
+                    ..
+                } => {
+                    let (lo, hi) = (o.bottom(), o.top().min(10.0));
+                    Solid::Box {
+                        centre: P3::new(x, y, (lo + hi) / 2.0),
+                        yaw,
+                        half: parry3d_f64::math::Vector::new(
+                            length / 2.0,
+                            width / 2.0,
+                            (hi - lo) / 2.0,
+                        ),
+                    }
+                }
+                Obstacle::Circle { .. } | Obstacle::Polygon { .. } => {
+                    let c = o.bounding_circle();
+                    Solid::Cylinder {
+                        base: P3::new(c.c.x, c.c.y, o.bottom()),
+                        radius: c.r,
+                        height: o.top().min(10.0) - o.bottom(),
+                    }
+                }
+            };
+            things.push(solid);
+        }
+        let mut surfaces = Vec::new();
+        for s in &scene.surface {
+            let poly = s.polygon();
+            for k in 0..poly.len() {
+                let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
+                things.push(Solid::capsule(
+                    P3::new(a.x, a.y, s.height),
+                    P3::new(b.x, b.y, s.height),
+                    EDGE_RADIUS,
+                ));
+            }
+            surfaces.push((poly, s.height));
+        }
+        let things: Vec<Thing> = things
+            .into_iter()
+            .map(|solid| Thing {
+                aabb: solid.aabb(),
+                top: solid.top(),
+                solid,
+            })
+            .collect();
+        World {
+            map,
+            surfaces,
+            things,
+        }
+    }
+
+    fn in_map(&self, p: V2) -> bool {
+        (self.map.0[0]..=self.map.0[1]).contains(&p.x)
+            && (self.map.1[0]..=self.map.1[1]).contains(&p.y)
+    }
+
+    /// The sole's corners at `f`.
+    pub fn sole(&self, f: &Foot, r: &Robot) -> [V2; 4] {
+        let (d, s) = (V2::polar(f.yaw), v2(-f.yaw.sin(), f.yaw.cos()));
+        let (l, w) = (r.foot.0 / 2.0, r.foot.1 / 2.0);
+        [(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)]
+            .map(|(a, b)| f.p + d * (a * l) + s * (b * w))
+    }
+
+    /// The foot's two rounded triangles with its sole at height `z`.
+    pub fn foot_solids(&self, p: V2, yaw: f64, z: f64, r: &Robot) -> [Solid; 2] {
+        let (d, s) = (V2::polar(yaw), v2(-yaw.sin(), yaw.cos()));
+        let (l, w) = (
+            r.foot.0 / 2.0 - r.sole_radius,
+            r.foot.1 / 2.0 - r.sole_radius,
+        );
+        let zc = z + r.sole_radius;
+        let c = [(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)].map(|(a, b)| {
+            let q = p + d * (a * l) + s * (b * w);
+            P3::new(q.x, q.y, zc)
+        });
+        [
+            Solid::rounded_triangle(c[0], c[1], c[2], r.sole_radius),
+            Solid::rounded_triangle(c[0], c[2], c[3], r.sole_radius),
+        ]
+    }
+
+    /// The shank above a foot at `p`, `yaw`, sole at `z`, leaning back by `tilt` rad.
+    pub fn shank(&self, p: V2, yaw: f64, z: f64, tilt: f64, r: &Robot) -> Solid {
+        let d = V2::polar(yaw);
+        let ankle = P3::new(p.x, p.y, z + r.ankle);
+        let knee = ankle
+            + parry3d_f64::math::Vector::new(
+                -d.x * tilt.sin() * r.shank,
+                -d.y * tilt.sin() * r.shank,
+                tilt.cos() * r.shank,
+            );
+        Solid::capsule(ankle, knee, r.shank_radius)
+    }
+
+    /// Where a foot at `f` would stand: the height of its surface, if the sole lies wholly on
+    /// one (or on the floor) inside the map and its SSVs touch no obstacle.
+    pub fn foothold(&self, f: &Foot, r: &Robot, stats: &mut Stats) -> Option<f64> {
+        let sole = self.sole(f, r);
+        if !sole.iter().all(|&c| self.in_map(c)) {
+            return None;
+        }
+        let mut z = 0.0;
+        let (lo, hi) = sole
+            .iter()
+            .fold((sole[0], sole[0]), |(lo, hi), &c| (lo.min(c), hi.max(c)));
+        for (poly, h) in &self.surfaces {
+            let (plo, phi) = poly
+                .iter()
+                .fold((poly[0], poly[0]), |(lo, hi), &c| (lo.min(c), hi.max(c)));
+            if hi.x < plo.x || lo.x > phi.x || hi.y < plo.y || lo.y > phi.y {
+                continue;
+            }
+            let inside = sole.iter().filter(|&&c| in_convex(c, poly)).count();
+            if inside == 4 {
+                z = f64::max(z, *h);
+            } else if inside > 0 || convex_overlap(&sole, poly) {
+                return None;
+            }
+        }
+        for s in self.foot_solids(f.p, f.yaw, z, r) {
+            let bb = s.aabb();
+            for t in &self.things {
+                if bb.intersects(&t.aabb) {
+                    stats.collision_queries += 1;
+                    if overlaps(&s, &t.solid) {
+                        return None;
+                    }
+                }
+            }
+        }
+        Some(z)
+    }
+
+    /// The swing from `from` to `to` (footholds with their heights): the highest obstacle the
+    /// swept foot and shank meet (0 when none), measured from the higher foothold.
+    pub fn swing(&self, from: &Foot, to: &Foot, r: &Robot, stats: &mut Stats) -> f64 {
+        let base = from.z.max(to.z);
+        let z = base + r.swing_height;
+        let len = from.p.dist(to.p);
+        let n = (len / 0.05).ceil().max(1.0) as usize;
+        let yaw = to.yaw;
+        // The shank leans back by the angle under half the step at the CoG's height.
+        let tilt = (len / 2.0).atan2(r.cog_height);
+        // Only what the whole swept volume's box meets is looked at, tallest first; the
+        // first overlap of each is its answer.
+        let sweep = {
+            let a = self.foot_solids(from.p, yaw, z, r)[0].aabb();
+            let b = self.shank(to.p, yaw, z, tilt, r).aabb();
+            let c = self.shank(from.p, yaw, z, tilt, r).aabb();
+            a.merged(&b).merged(&c).loosened(r.foot.0)
+        };
+        let mut near: Vec<&Thing> = self
+            .things
+            .iter()
+            .filter(|t| sweep.intersects(&t.aabb))
+            .collect();
+        near.retain(|t| t.top > base);
+        if near.is_empty() {
+            return 0.0;
+        }
+        near.sort_by(|a, b| b.top.total_cmp(&a.top));
+        // The swept volume, sampled: the first obstacle met, tallest first, is the answer.
+        let at_origin = self.foot_solids(v2(0.0, 0.0), yaw, z, r);
+        let shank0 = self.shank(v2(0.0, 0.0), yaw, z, tilt, r);
+        let samples: Vec<(Solid, Aabb)> = (0..=n)
+            .flat_map(|i| {
+                let p = from.p + (to.p - from.p) * (i as f64 / n as f64);
+                let t = parry3d_f64::math::Vector::new(p.x, p.y, 0.0);
+                [at_origin[0], at_origin[1], shank0].map(|s| s.translated(t))
+            })
+            .map(|s| (s, s.aabb()))
+            .collect();
+        for t in near {
+            if t.top - base <= 0.0 {
+                break;
+            }
+            let hit = samples.iter().any(|(s, bb)| {
+                bb.intersects(&t.aabb) && {
+                    stats.collision_queries += 1;
+                    overlaps(s, &t.solid)
+                }
+            });
+            if hit {
+                return t.top - base;
+            }
+        }
+        0.0
+    }
+}
+
+/// True when `p` lies in (or on) the counter-clockwise convex polygon `poly`.
+fn in_convex(p: V2, poly: &[V2]) -> bool {
+    let n = poly.len();
+    (0..n).all(|k| (poly[(k + 1) % n] - poly[k]).cross(p - poly[k]) >= 0.0)
+}
+
+/// A foothold reached by the search.
+#[derive(Debug, Clone, Copy)]
+struct Node {
+    stance: Foot,
+    other: Foot,
+    g: f64,
+    depth: usize,
+    parent: Option<usize>,
+}
+
+/// The offsets of the suggestions: (advance, width, turn) steps of (0.10 m, 0.05 m, 0.1 rad).
+fn suggestions(reduced: bool) -> Vec<(f64, f64, f64)> {
+    let mut pos: Vec<(f64, f64)> = Vec::new();
+    for i in -1..=1 {
+        for j in -1..=1 {
+            pos.push((i as f64, j as f64));
+        }
+    }
+    let outer = [
+        (2.0, 0.0),
+        (-2.0, 0.0),
+        (0.0, 2.0),
+        (0.0, -2.0),
+        (2.0, 2.0),
+        (2.0, -2.0),
+        (-2.0, 2.0),
+        (-2.0, -2.0),
+    ];
+    let mut out = Vec::new();
+    if reduced {
+        for &(i, j) in &pos {
+            for t in [-1.0, 0.0, 1.0] {
+                out.push((i * 0.10, j * 0.05, t * 0.1));
+            }
+        }
+        // The outer ring without the step straight back, at the desired turn.
+        for &(i, j) in outer.iter().filter(|&&(i, j)| !(i < 0.0 && j == 0.0)) {
+            out.push((i * 0.10, j * 0.05, 0.0));
+        }
+    } else {
+        pos.extend(outer);
+        for &(i, j) in &pos {
+            for t in [-2.0, -1.0, 0.0, 1.0, 2.0] {
+                out.push((i * 0.10, j * 0.05, t * 0.1));
+            }
+        }
+    }
+    out
+}
+
+/// Step limits: advance, extra width (outwards), turn.
+const LX: (f64, f64) = (-0.2, 0.5);
+const LY: (f64, f64) = (-0.05, 0.25);
+const PHI: f64 = 0.4;
+
+/// The swing foot's pose after a step of (advance, extra width outwards, turn
+/// counter-clockwise) from `stance`: along a circular path, the turn spread over the step.
+pub fn place(stance: &Foot, step: (f64, f64, f64), width: f64) -> Foot {
+    let (lx, ly, phi) = step;
+    let side = if stance.left { -1.0 } else { 1.0 };
+    let h = stance.yaw + phi / 2.0;
+    let (d, s) = (V2::polar(h), v2(-h.sin(), h.cos()));
+    Foot {
+        p: stance.p + d * lx + s * (side * (width + ly)),
+        z: stance.z,
+        yaw: wrap(stance.yaw + phi),
+        left: !stance.left,
+    }
+}
+
+/// The mid-stance point of a foot: half the nominal width towards where the other foot
+/// stands.
+pub fn mid(f: &Foot, width: f64) -> V2 {
+    let side = if f.left { -1.0 } else { 1.0 };
+    f.p + v2(-f.yaw.sin(), f.yaw.cos()) * (side * width / 2.0)
+}
+
+struct Problem<'a> {
+    world: &'a World,
+    s: &'a Settings,
+    goal: V2,
+    goal_yaw: f64,
+    steps: Vec<(f64, f64, f64)>,
+    field: Option<(Grid, Vec<f64>)>,
+}
+
+impl Problem<'_> {
+    fn h(&self, f: &Foot) -> f64 {
+        let m = mid(f, self.s.robot.width);
+        let dth = self.s.w_theta * wrap(f.yaw - self.goal_yaw);
+        let e = (m.dist(self.goal).powi(2) + dth * dth).sqrt();
+        match &self.field {
+            Some((g, d)) if self.s.couple_heuristic => match g.cell(m) {
+                Some((i, j)) if d[j * g.nx + i].is_finite() => {
+                    let way = d[j * g.nx + i] / 1.02 - 1.5 * g.res;
+                    e.max((way.max(0.0).powi(2) + dth * dth).sqrt())
+                }
+                _ => e,
+            },
+            _ => e,
+        }
+    }
+
+    /// The desired turn from `f`: towards the pre-planner's way (coupling 3), else none.
+    fn desired_turn(&self, f: &Foot) -> f64 {
+        let d = self.s.desired.2;
+        if !self.s.couple_heading {
+            return d;
+        }
+        let Some((g, dist)) = &self.field else {
+            return d;
+        };
+        let m = mid(f, self.s.robot.width);
+        if m.dist(self.goal) < 0.5 {
+            return (wrap(self.goal_yaw - f.yaw)).clamp(-0.2, 0.2);
+        }
+        match g.descent(dist, m, 0.6) {
+            Some(to) => wrap((to - m).angle() - f.yaw).clamp(-0.2, 0.2),
+            None => d,
+        }
+    }
+
+    fn successors(&self, n: &Node, stats: &mut Stats) -> Vec<(Foot, f64)> {
+        let s = self.s;
+        let r = &s.robot;
+        let (lx0, ly0, _) = s.desired;
+        let phi0 = self.desired_turn(&n.stance);
+        let mut out = Vec::new();
+        for &(dx, dy, dp) in &self.steps {
+            let (lx, ly, phi) = (lx0 + dx, ly0 + dy, phi0 + dp);
+            if !(LX.0..=LX.1).contains(&lx) || !(LY.0..=LY.1).contains(&ly) || phi.abs() > PHI {
+                continue;
+            }
+            stats.generated += 1;
+            let mut f = place(&n.stance, (lx, ly, phi), r.width);
+            let Some(z) = self.world.foothold(&f, r, stats) else {
+                continue;
+            };
+            f.z = z;
+            if (z - n.stance.z).abs() > r.max_step_height {
+                continue;
+            }
+            if self.world.swing(&n.other, &f, r, stats) > r.h_max {
+                continue;
+            }
+            out.push((f, step_cost(s, (lx, ly, phi), phi0)));
+        }
+        out
+    }
+}
+
+/// The cost of a step (Eq. 4.8): the desired step's weighted length plus k times the
+/// weighted distance of the step from it, the desired turn being `desired_turn`.
+pub fn step_cost(s: &Settings, step: (f64, f64, f64), desired_turn: f64) -> f64 {
+    let (lx0, ly0, _) = s.desired;
+    let (lx, ly, phi) = step;
+    let c_des = (lx0 * lx0 + (s.w_theta * desired_turn).powi(2)).sqrt();
+    let dev =
+        ((lx - lx0).powi(2) + (ly - ly0).powi(2) + (s.w_theta * (phi - desired_turn)).powi(2))
+            .sqrt();
+    c_des + s.k * dev
+}
+
+/// The suggestions' offsets from the desired step (85, or the reduced 34).
+pub fn suggestion_count(reduced: bool) -> usize {
+    suggestions(reduced).len()
+}
+
+/// Steps in place from the start: the fallback when nothing better is found.
+fn in_place(right: Foot, left: Foot) -> Vec<Foot> {
+    vec![right, left, right, left, right]
+}
+
+/// Plans from the robot standing at `start` (feet side by side, the right one to swing first)
+/// to the goal pose.
+pub fn plan(
+    start: V2,
+    start_yaw: f64,
+    goal: V2,
+    goal_yaw: f64,
+    world: &World,
+    mode: Mode,
+    s: &Settings,
+) -> Plan {
+    let t0 = Instant::now();
+    let mut stats = Stats::default();
+    let r = &s.robot;
+    let (mut left, mut right) = Foot::standing(start, start_yaw, r.width);
+    for f in [&mut left, &mut right] {
+        match world.foothold(f, r, &mut stats) {
+            Some(z) => f.z = z,
+            None => {
+                return Plan::failed(
+                    Status::StartInCollision,
+                    "a foot of the start is off the map, across an edge or on an obstacle",
+                    stats,
+                )
+            }
+        }
+    }
+    if !world.in_map(goal) {
+        return Plan::failed(Status::GoalOutsideMap, "the goal is outside the map", stats);
+    }
+    let probe = Foot {
+        p: goal,
+        z: 0.0,
+        yaw: goal_yaw,
+        left: true,
+    };
+    if world.foothold(&probe, r, &mut stats).is_none() {
+        return Plan::failed(
+            Status::GoalInCollision,
+            "no foot can stand at the goal",
+            stats,
+        );
+    }
+    // The 2-D pre-planner: a distance field over the tall obstacles, grown by the margin.
+    let field = (s.couple_heuristic || s.couple_heading).then(|| {
+        let mut g = Grid::flat(world.map.0, world.map.1, 0.05);
+        let tall: Vec<&Thing> = world.things.iter().filter(|t| t.top > r.h_max).collect();
+        let grow = s.margin;
+        g.paint(
+            |p| {
+                tall.iter().any(|t| {
+                    t.aabb.mins.x - grow <= p.x
+                        && p.x <= t.aabb.maxs.x + grow
+                        && t.aabb.mins.y - grow <= p.y
+                        && p.y <= t.aabb.maxs.y + grow
+                        && t.solid.footprint_distance(p) < grow
+                })
+            },
+            |_| 1.0,
+        );
+        let d = g.distance_field(goal, |h| h == 0.0);
+        (g, d)
+    });
+    let pr = Problem {
+        world,
+        s,
+        goal,
+        goal_yaw,
+        steps: suggestions(s.reduced),
+        field,
+    };
+    stats.prepare = t0.elapsed();
+    let t1 = Instant::now();
+    let deadline = t1 + s.budget;
+    let lattice = mode == Mode::Improved;
+    let root = Node {
+        stance: left,
+        other: right,
+        g: 0.0,
+        depth: 0,
+        parent: None,
+    };
+    let mut weights = if lattice {
+        s.weights.clone()
+    } else {
+        vec![1.0]
+    };
+    // Towards a horizon, cost alone does not rank plans: one pass.
+    if s.horizon.is_some() {
+        weights.truncate(1);
+    }
+    let mut best = (pr.h(&left), vec![root], 0usize);
+    let mut found: Option<(Vec<Node>, usize, Status, f64)> = None;
+    let mut why = "no foothold sequence reaches the goal";
+    for &w in &weights {
+        let cap = found.as_ref().map_or(f64::INFINITY, |f| f.0[f.1].g);
+        let out = pass(&pr, root, w, lattice, cap, deadline, &mut stats, &mut best);
+        match out {
+            Pass::Found(nodes, i, status) => {
+                stats.first_plan.get_or_insert(t1.elapsed());
+                stats.first_plan_expansions.get_or_insert(stats.expansions);
+                if status != Status::Ok {
+                    why = "the horizon";
+                }
+                found = Some((nodes, i, status, w));
+            }
+            Pass::Exhausted => match found.as_mut() {
+                Some(f) => f.3 = w,
+                None => break,
+            },
+            Pass::Stopped(reason) => {
+                why = reason;
+                break;
+            }
+        }
+    }
+    stats.search = t1.elapsed();
+    let (nodes, last, status, bound) = match found {
+        Some((nodes, i, status, w)) => (nodes, i, status, (status == Status::Ok).then_some(w)),
+        // The deadline: the best partial plan (improved mode), or steps in place.
+        None if lattice && best.2 != 0 => (best.1, best.2, Status::Partial, None),
+        None => {
+            let steps = in_place(right, left);
+            return Plan {
+                status: Status::Partial,
+                detail: format!("{why}: stepping in place"),
+                path: vec![start],
+                cost: 0.0,
+                steps,
+                stats,
+                bound: None,
+            };
+        }
+    };
+    let mut feet = Vec::new();
+    let mut at = Some(last);
+    while let Some(i) = at {
+        feet.push(nodes[i].stance);
+        at = nodes[i].parent;
+    }
+    feet.push(right);
+    feet.reverse();
+    let path = feet.iter().skip(1).map(|f| mid(f, r.width)).collect();
+    Plan {
+        status,
+        detail: if status == Status::Ok {
+            String::new()
+        } else {
+            why.to_string()
+        },
+        path,
+        cost: nodes[last].g,
+        steps: feet,
+        stats,
+        bound: bound.filter(|_| lattice),
+    }
+}
+
+/// How one pass ended.
+enum Pass {
+    /// At the goal (or the horizon): the nodes, the last one, and which.
+    Found(Vec<Node>, usize, Status),
+    /// Nothing left to expand below the incumbent.
+    Exhausted,
+    /// The cap or the budget, with why.
+    Stopped(&'static str),
+}
+
+/// One weighted A* pass (a tree search in thesis mode), pruned by `incumbent`; `best` keeps
+/// the node nearest the goal by the heuristic (and the nodes it belongs to).
+#[allow(clippy::too_many_arguments)]
+fn pass(
+    pr: &Problem,
+    root: Node,
+    weight: f64,
+    lattice: bool,
+    incumbent: f64,
+    deadline: Instant,
+    stats: &mut Stats,
+    best: &mut (f64, Vec<Node>, usize),
+) -> Pass {
+    let (s, r, goal, goal_yaw) = (pr.s, &pr.s.robot, pr.goal, pr.goal_yaw);
+    let mut nodes = vec![root];
+    let mut open = BinaryHeap::from([Least(weight * pr.h(&root.stance), 0)]);
+    let key = |f: &Foot| {
+        let m = mid(f, r.width);
+        (
+            (m.x / 0.05).round() as i64,
+            (m.y / 0.05).round() as i64,
+            (wrap(f.yaw) / 5f64.to_radians()).round() as i64,
+            f.left,
+        )
+    };
+    let mut best_g: HashMap<(i64, i64, i64, bool), f64> = HashMap::new();
+    let mut best_here = (best.0, 0usize);
+    let finish = |nodes: Vec<Node>, best_here: (f64, usize), best: &mut (f64, Vec<Node>, usize)| {
+        if best_here.1 != 0 && best_here.0 < best.0 {
+            *best = (best_here.0, nodes, best_here.1);
+        }
+    };
+    while let Some(Least(_, i)) = open.pop() {
+        let n = nodes[i];
+        if lattice && best_g.get(&key(&n.stance)).is_some_and(|&b| n.g > b) {
+            continue;
+        }
+        let hn = pr.h(&n.stance);
+        let m = mid(&n.stance, r.width);
+        if m.dist(goal) < s.tolerance.0 && wrap(n.stance.yaw - goal_yaw).abs() < s.tolerance.1 {
+            return Pass::Found(nodes, i, Status::Ok);
+        }
+        if s.horizon.is_some_and(|k| n.depth >= k) {
+            return Pass::Found(nodes, i, Status::Partial);
+        }
+        if hn < best_here.0 {
+            best_here = (hn, i);
+        }
+        if stats.expansions >= s.max_expansions {
+            finish(nodes, best_here, best);
+            return Pass::Stopped("the expansion cap was reached");
+        }
+        if stats.expansions.is_multiple_of(16) && Instant::now() > deadline {
+            finish(nodes, best_here, best);
+            return Pass::Stopped("the time budget ran out");
+        }
+        stats.expansions += 1;
+        for (f, c) in pr.successors(&n, stats) {
+            let child = Node {
+                stance: f,
+                other: n.stance,
+                g: n.g + c,
+                depth: n.depth + 1,
+                parent: Some(i),
+            };
+            if lattice {
+                let k = key(&f);
+                if best_g.get(&k).is_some_and(|&b| b <= child.g) {
+                    continue;
+                }
+                best_g.insert(k, child.g);
+            }
+            let hc = pr.h(&f);
+            if child.g + hc >= incumbent {
+                continue;
+            }
+            nodes.push(child);
+            open.push(Least(child.g + weight * hc, nodes.len() - 1));
+        }
+    }
+    finish(nodes, best_here, best);
+    Pass::Exhausted
+}
