@@ -13,6 +13,7 @@ pub mod kaist_search;
 pub mod lola;
 pub mod node;
 pub mod plan;
+pub mod planner;
 pub mod scene;
 pub mod ssv;
 pub mod steps;

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::Parser;
-use stride_footstep_planner::node::{circles_of, plan_request, Reason, Replanner, World};
+use stride_footstep_planner::node::{obstacles_of, plan_request, Reason, Replanner, World};
 use stride_footstep_planner::scene::Scene;
 use stride_lcmtypes::stride::{FootstepPlanRequestT, FootstepPlanT, NodeStatusT, ObstacleListT};
 use stride_node::{Node, NodeArgs, Stamper, Ticker};
@@ -18,8 +18,10 @@ use stride_node::{Node, NodeArgs, Stamper, Ticker};
 /// search metrics). The world comes from the mapper's stride.obstacle_list_t, or from a scene
 /// file (--scene). When the world changes so that the current plan runs into an obstacle, or a
 /// new request comes, it plans again, once per change. Searches run beside the bus loop, never
-/// in it. Only Archie's planner is built so far (PLANNER_ARCHIE; faithful or improved); other
-/// planners are answered with STATUS_BAD_REQUEST.
+/// in it. Every planner answers, faithful or improved: Archie's (PLANNER_ARCHIE), the KAIST
+/// energy A* (PLANNER_KAIST, on an elevation grid made from the world; budget 200 ms unless the
+/// request gives one) and LOLA's (PLANNER_LOLA, with the scene's surfaces; 400 ms). An unknown
+/// planner is answered with STATUS_BAD_REQUEST.
 #[derive(Parser, Debug)]
 #[command(version, about, long_about)]
 struct Cli {
@@ -47,11 +49,12 @@ struct Job {
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
-    let mut world = World::default();
-    if let Some(path) = &cli.scene {
-        let scene = Scene::load(path).with_context(|| format!("loading {}", path.display()))?;
-        world.update(scene.circles());
-    }
+    let mut world = match &cli.scene {
+        Some(path) => World::from_scene(
+            Scene::load(path).with_context(|| format!("loading {}", path.display()))?,
+        ),
+        None => World::default(),
+    };
     let node = Node::start("stride-footstep-planner", &cli.node)?;
     let (_req_sub, requests) = node.queue::<FootstepPlanRequestT>(&cli.request_channel)?;
     let (_obs_sub, obstacles) = node.queue::<ObstacleListT>(&cli.obstacle_channel)?;
@@ -101,7 +104,7 @@ fn main() -> anyhow::Result<()> {
             if cli.scene.is_some() {
                 continue; // the scene is the world
             }
-            if world.update(circles_of(&list)) {
+            if world.update(obstacles_of(&list)) {
                 if let Some((req, reason)) = replanner.on_world(&world) {
                     let _ = jobs.send(Job {
                         req,

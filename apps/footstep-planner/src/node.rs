@@ -8,98 +8,155 @@ use stride_lcmtypes::stride::{
     FootT, FootstepPlanRequestT, FootstepPlanT, FootstepT, HeaderT, ObstacleListT, ObstacleT,
 };
 
-use crate::archie::{self, headings, Params};
+use crate::archie::{self, Params};
 use crate::geom::{v2, Circle, V2};
 use crate::plan::{Foot, Plan, Stats, Status};
-use crate::steps::{self, StepParams};
+use crate::planner::{self, Request, Which};
+use crate::scene::{Obstacle, Pose, Scene};
+use crate::steps::StepParams;
 
-/// What the planner knows of the world: circles around the obstacles, and a version that
-/// changes when they do.
-#[derive(Debug, Clone, PartialEq, Default)]
+/// What the planner knows of the world: a scene of obstacles (and, from a scene file,
+/// surfaces and a map), and a version that changes when they do.
+#[derive(Debug, Clone, PartialEq)]
 pub struct World {
-    /// Obstacles (not grown).
-    pub circles: Vec<Circle>,
+    /// The obstacles, surfaces and map.
+    pub scene: Scene,
     /// Bumped by every change.
     pub version: u64,
 }
 
+impl Default for World {
+    fn default() -> Self {
+        World::from_scene(Scene {
+            name: "bus".into(),
+            description: "obstacles from the bus".into(),
+            start: Pose::default(),
+            goal: Pose::default(),
+            obstacle: Vec::new(),
+            surface: Vec::new(),
+            params: None,
+            map: None,
+            dir: Default::default(),
+        })
+    }
+}
+
 impl World {
+    /// A scene file's world.
+    pub fn from_scene(scene: Scene) -> World {
+        World { scene, version: 0 }
+    }
+
     /// Replaces the obstacles; true (and a new version) when they differ from the present ones.
-    pub fn update(&mut self, circles: Vec<Circle>) -> bool {
-        if circles == self.circles {
+    pub fn update(&mut self, obstacles: Vec<Obstacle>) -> bool {
+        if obstacles == self.scene.obstacle {
             return false;
         }
-        self.circles = circles;
+        self.scene.obstacle = obstacles;
         self.version += 1;
         true
     }
-}
 
-/// The obstacles of a perception message as circles (polygons and LOLA's primitives by the
-/// circle around their footprint).
-pub fn circles_of(list: &ObstacleListT) -> Vec<Circle> {
-    list.obstacles.iter().map(circle_of).collect()
-}
-
-fn circle_of(o: &ObstacleT) -> Circle {
-    let c = v2(o.center[0], o.center[1]);
-    if o.kind == ObstacleT::KIND_CIRCLE || o.kind == ObstacleT::KIND_SPHERE || o.vertices.is_empty()
-    {
-        return Circle { c, r: o.radius };
+    /// Every obstacle as a circle around its footprint.
+    pub fn circles(&self) -> Vec<Circle> {
+        self.scene.circles()
     }
-    let pts: Vec<V2> = o.vertices.iter().map(|v| v2(v[0], v[1])).collect();
-    let centre = pts
-        .iter()
-        .fold(v2(0.0, 0.0), |a, &p| a + p * (1.0 / pts.len() as f64));
-    let r = pts.iter().map(|p| p.dist(centre)).fold(0.0, f64::max) + o.radius.max(0.0);
-    Circle { c: centre, r }
 }
 
-/// A plan for `req` in `world`: the message, the planner's path and the growth it used.
+/// The obstacles of a perception message, as scene obstacles.
+pub fn obstacles_of(list: &ObstacleListT) -> Vec<Obstacle> {
+    list.obstacles.iter().map(obstacle_of).collect()
+}
+
+fn obstacle_of(o: &ObstacleT) -> Obstacle {
+    let (base, height) = (o.z_min, Some(o.z_max - o.z_min));
+    let v = |k: usize| o.vertices.get(k).copied().unwrap_or(o.center);
+    match o.kind {
+        ObstacleT::KIND_POLYGON if o.vertices.len() >= 3 => Obstacle::Polygon {
+            points: o.vertices.iter().map(|p| [p[0], p[1]]).collect(),
+            height,
+            base,
+        },
+        ObstacleT::KIND_SPHERE => Obstacle::Sphere {
+            centre: o.center,
+            radius: o.radius,
+        },
+        ObstacleT::KIND_CAPSULE => Obstacle::Capsule {
+            a: v(0),
+            b: v(1),
+            radius: o.radius,
+        },
+        ObstacleT::KIND_ROUNDED_TRIANGLE if o.vertices.len() >= 3 => Obstacle::RoundedTriangle {
+            points: [v(0), v(1), v(2)],
+            radius: o.radius,
+        },
+        _ => Obstacle::Circle {
+            x: o.center[0],
+            y: o.center[1],
+            radius: o.radius,
+            height,
+            base,
+        },
+    }
+}
+
+/// A plan for `req` in `world`: the message, the planner's path and the growth around it that
+/// the replanning check uses.
 pub fn plan_request(req: &FootstepPlanRequestT, world: &World) -> (FootstepPlanT, Vec<V2>, f64) {
     let stance = v2(req.stance.x, req.stance.y);
     let swing = v2(req.swing.x, req.swing.y);
     let start = (stance + swing) * 0.5;
-    let start_yaw = req.stance.yaw;
-    let goal = v2(req.goal_x, req.goal_y);
-    let mut params = if req.faithful {
-        Params::default()
-    } else {
-        Params::improved()
+    let which = match req.planner {
+        FootstepPlanRequestT::PLANNER_ARCHIE => Some(Which::Archie),
+        FootstepPlanRequestT::PLANNER_KAIST => Some(Which::Kaist),
+        FootstepPlanRequestT::PLANNER_LOLA => Some(Which::Lola),
+        _ => None,
     };
-    if req.max_time_us > 0 {
-        params.budget = Duration::from_micros(req.max_time_us as u64);
-    }
-    let plan = if req.planner != FootstepPlanRequestT::PLANNER_ARCHIE {
-        Plan::failed(
+    let Some(which) = which else {
+        let plan = Plan::failed(
             Status::NoPath,
-            "only Archie's planner (PLANNER_ARCHIE) is built; KAIST and LOLA are not yet",
+            format!(
+                "unknown planner {} (PLANNER_ARCHIE, PLANNER_KAIST or PLANNER_LOLA)",
+                req.planner
+            ),
             Stats::default(),
-        )
-    } else if req.faithful {
-        let mut p = archie::plan_tree(start, goal, &world.circles, &params).0;
-        if p.status == Status::Ok {
-            p.steps = steps::faithful(
-                &p.path,
-                &headings(&p.path, start_yaw),
-                &StepParams::default(),
-                true,
-            );
-        }
-        p
-    } else {
-        let mut p = archie::plan_exact(start, goal, &world.circles, &params);
-        if p.status == Status::Ok {
-            p.steps = steps::improved(&p.path, start_yaw, &StepParams::default());
-        }
-        p
+        );
+        return (to_msg(req, &plan, true), Vec::new(), 0.0);
     };
-    let bad_request = req.planner != FootstepPlanRequestT::PLANNER_ARCHIE;
-    (
-        to_msg(req, &plan, bad_request),
-        plan.path.clone(),
-        params.inflation,
-    )
+    let r = Request {
+        planner: which,
+        faithful: req.faithful,
+        start: Pose {
+            x: start.x,
+            y: start.y,
+            yaw: req.stance.yaw,
+            z: req.stance.z,
+        },
+        goal: Pose {
+            x: req.goal_x,
+            y: req.goal_y,
+            yaw: req.goal_yaw,
+            z: 0.0,
+        },
+        horizon: None,
+    };
+    let budget = if req.max_time_us > 0 {
+        Duration::from_micros(req.max_time_us as u64)
+    } else {
+        match which {
+            Which::Lola => Duration::from_millis(400),
+            _ => Duration::from_millis(200),
+        }
+    };
+    let plan = planner::plan(&r, &world.scene, budget);
+    // The growth the replanning check puts around the path: the planner's own for Archie's,
+    // half a foot for the footstep planners (their paths run between the feet).
+    let inflation = match which {
+        Which::Archie if req.faithful => Params::default().inflation,
+        Which::Archie => Params::improved().inflation,
+        _ => 0.1,
+    };
+    (to_msg(req, &plan, false), plan.path.clone(), inflation)
 }
 
 fn foot_msg(f: &Foot) -> FootT {
@@ -111,7 +168,7 @@ fn foot_msg(f: &Foot) -> FootT {
         },
         x: f.p.x,
         y: f.p.y,
-        z: 0.0,
+        z: f.z,
         yaw: f.yaw,
     }
 }
@@ -258,7 +315,7 @@ impl Replanner {
         if world.version == self.planned_version {
             return None;
         }
-        let grown = archie::inflate(&world.circles, self.inflation);
+        let grown = archie::inflate(&world.circles(), self.inflation);
         let blocked = self.path.is_empty()
             || self
                 .path
@@ -289,12 +346,19 @@ mod tests {
         }
     }
 
+    fn circle(x: f64, y: f64, r: f64) -> Obstacle {
+        Obstacle::Circle {
+            x,
+            y,
+            radius: r,
+            height: Some(1.0),
+            base: 0.0,
+        }
+    }
+
     fn world() -> World {
         let mut w = World::default();
-        w.update(vec![Circle {
-            c: v2(2.0, 0.0),
-            r: 0.5,
-        }]);
+        w.update(vec![circle(2.0, 0.0, 0.5)]);
         w
     }
 
@@ -320,24 +384,52 @@ mod tests {
 
     #[test]
     fn failures_are_statuses_with_steps_in_place() {
-        let (msg, _, _) = plan_request(
-            &request((4.0, 0.0), FootstepPlanRequestT::PLANNER_KAIST, false),
-            &world(),
-        );
+        let (msg, _, _) = plan_request(&request((4.0, 0.0), 9, false), &world());
         assert_eq!(msg.status, FootstepPlanT::STATUS_BAD_REQUEST);
-        assert!(msg.detail.contains("only Archie"));
+        assert!(msg.detail.contains("unknown planner 9"));
         assert_eq!(msg.num_steps, 3);
         assert!(msg.steps.iter().all(|s| s.is_padding));
-        let (msg, _, _) = plan_request(
-            &request((2.0, 0.1), FootstepPlanRequestT::PLANNER_ARCHIE, false),
-            &world(),
-        );
-        assert_eq!(msg.status, FootstepPlanT::STATUS_GOAL_IN_COLLISION);
-        assert_eq!(
-            msg.steps[0].foot.side,
-            FootT::SIDE_LEFT,
-            "the swing foot first"
-        );
+        for planner in [
+            FootstepPlanRequestT::PLANNER_ARCHIE,
+            FootstepPlanRequestT::PLANNER_KAIST,
+            FootstepPlanRequestT::PLANNER_LOLA,
+        ] {
+            let (msg, _, _) = plan_request(&request((2.0, 0.1), planner, false), &world());
+            assert_eq!(
+                msg.status,
+                FootstepPlanT::STATUS_GOAL_IN_COLLISION,
+                "{planner}"
+            );
+            assert_eq!(
+                msg.steps[0].foot.side,
+                FootT::SIDE_LEFT,
+                "the swing foot first"
+            );
+            assert!(msg.num_steps >= 3);
+        }
+    }
+
+    #[test]
+    fn every_planner_answers_through_the_node() {
+        for planner in [
+            FootstepPlanRequestT::PLANNER_KAIST,
+            FootstepPlanRequestT::PLANNER_LOLA,
+        ] {
+            for faithful in [false, true] {
+                let (msg, path, _) =
+                    plan_request(&request((1.5, 0.0), planner, faithful), &World::default());
+                assert_eq!(
+                    msg.status,
+                    FootstepPlanT::STATUS_OK,
+                    "{planner}: {}",
+                    msg.detail
+                );
+                assert!(msg.num_steps >= 3 && !path.is_empty());
+                for w in msg.steps.windows(2) {
+                    assert_ne!(w[0].foot.side, w[1].foot.side);
+                }
+            }
+        }
     }
 
     #[test]
@@ -351,25 +443,16 @@ mod tests {
         let (_, path, inflation) = plan_request(&req, &w);
         r.planned(path, inflation, w.version);
         // An obstacle far away: the plan stands.
-        let mut far = w.circles.clone();
-        far.push(Circle {
-            c: v2(0.0, 5.0),
-            r: 0.5,
-        });
+        let mut far = w.scene.obstacle.clone();
+        far.push(circle(0.0, 5.0, 0.5));
         assert!(w.update(far.clone()));
         assert_eq!(r.on_world(&w), None);
         // The same world again: nothing changed.
         assert!(!w.update(far.clone()));
         // One across the path: one replan, not two.
         let mut across = far;
-        across.push(Circle {
-            c: v2(3.2, 0.7),
-            r: 0.4,
-        });
-        across.push(Circle {
-            c: v2(3.2, -0.7),
-            r: 0.4,
-        });
+        across.push(circle(3.2, 0.7, 0.4));
+        across.push(circle(3.2, -0.7, 0.4));
         assert!(w.update(across));
         assert_eq!(r.on_world(&w).map(|x| x.1), Some(Reason::WorldChanged));
         assert_eq!(r.on_world(&w), None, "once per change");

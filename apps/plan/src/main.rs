@@ -9,16 +9,18 @@ use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
 use stride_footstep_planner::archie::{self, exact_length, headings, Params};
 use stride_footstep_planner::plan::{Plan, Status};
+use stride_footstep_planner::planner;
 use stride_footstep_planner::scene::Scene;
 use stride_footstep_planner::steps::{self, StepParams};
 use stride_footstep_planner::svg;
 
-mod kaist;
+mod footsteps;
 
 /// Plan one scene, or every scene of a directory, side by side in each planner's modes. The
 /// planner follows the scene's name: `kaist-*` scenes go to the KAIST planner (the thesis's
-/// tree search and the improved anytime lattice search, on the scene's elevation grid), all
-/// others to Archie's.
+/// tree search and the improved anytime lattice search, on the scene's elevation grid),
+/// `lola-*` scenes to LOLA's (the thesis's search tree, and the improved lattice search
+/// coupled to the 2-D pre-planner), all others to Archie's.
 ///
 /// Archie's planner plans in its faithful mode
 /// (the thesis's tangent tree and footsteps, obstacles grown by 0.1 m), in its improved mode on
@@ -30,9 +32,9 @@ mod kaist;
 /// path length, the exact optimum and the ratio, steps, expansions, generated successors,
 /// collision queries, preparation and search time) to --out/plans.csv. With --repeats N each
 /// plan runs N times and the CSV gives the median and 99th-percentile times; --table prints
-/// the same as a Markdown table. KAIST scenes go to --out/kaist.csv (cost in J, steps,
-/// expansions in all and to the first plan, the anytime bound, times to the first plan and in
-/// all) and SVGs on the elevation grid.
+/// the same as a Markdown table. KAIST and LOLA scenes go to --out/kaist.csv and
+/// --out/lola.csv (cost, steps, expansions in all and to the first plan, the anytime bound,
+/// times to the first plan and in all) with SVGs on the scene's elevation grid.
 #[derive(Parser, Debug)]
 #[command(version, about, long_about)]
 struct Cli {
@@ -51,7 +53,8 @@ struct Cli {
     /// No SVGs.
     #[arg(long)]
     no_svg: bool,
-    /// Time budget of the KAIST planner's improved (anytime) mode, ms.
+    /// Time budget of the footstep planners (KAIST's and LOLA's), ms: the improved modes
+    /// improve their plan until it runs out; the thesis's modes stop there.
     #[arg(long, default_value_t = 200)]
     budget_ms: u64,
 }
@@ -140,18 +143,19 @@ fn main() -> anyhow::Result<()> {
     );
     let mut rows = Vec::new();
     let mut kaist_rows = Vec::new();
+    let mut lola_rows = Vec::new();
     let budget = std::time::Duration::from_millis(cli.budget_ms);
     for f in &files {
         let scene = Scene::load(f)?;
         bar.set_message(scene.name.clone());
-        if scene.name.starts_with("kaist") {
-            kaist_rows.extend(kaist::run(
-                &scene,
-                cli.repeats,
-                budget,
-                &cli.out,
-                cli.no_svg,
-            )?);
+        let which = planner::for_scene(&scene);
+        if which != planner::Which::Archie {
+            let found = footsteps::run(&scene, cli.repeats, budget, &cli.out, cli.no_svg)?;
+            if which == planner::Which::Kaist {
+                kaist_rows.extend(found);
+            } else {
+                lola_rows.extend(found);
+            }
             bar.inc(1);
             continue;
         }
@@ -187,14 +191,18 @@ fn main() -> anyhow::Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    if !kaist_rows.is_empty() {
-        kaist::write_csv(&cli.out.join("kaist.csv"), &mut kaist_rows)?;
+    for (rows, csv) in [(&mut kaist_rows, "kaist.csv"), (&mut lola_rows, "lola.csv")] {
+        if rows.is_empty() {
+            continue;
+        }
+        footsteps::write_csv(&cli.out.join(csv), rows)?;
         if cli.table {
-            kaist::print_table(&mut kaist_rows, cli.repeats, budget);
+            footsteps::print_table(rows, cli.repeats, budget);
+            println!();
         } else {
-            for r in &kaist_rows {
+            for r in rows.iter() {
                 println!(
-                    "{:<16} {:<9} {:<10} cost {:>9.0} J {:>3} steps {:>7} expansions bound {}",
+                    "{:<18} {:<9} {:<10} cost {:>9.2} {:>3} steps {:>7} expansions bound {}",
                     r.scene,
                     r.mode,
                     r.plan.status.name(),
@@ -206,7 +214,7 @@ fn main() -> anyhow::Result<()> {
             }
             println!(
                 "wrote {} and the SVGs to {}",
-                cli.out.join("kaist.csv").display(),
+                cli.out.join(csv).display(),
                 cli.out.display()
             );
         }
