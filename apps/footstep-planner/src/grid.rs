@@ -71,6 +71,51 @@ impl Grid {
     /// resolution (0.05 m by default), the elevation file or flat ground, then the surfaces,
     /// then the obstacles' tops over their footprints.
     pub fn of_scene(scene: &Scene) -> Result<Grid, GridError> {
+        let (x, y, res) = Grid::extent_of(scene);
+        let mut g = Grid::flat(x, y, res);
+        if let Some(file) = scene.map.as_ref().and_then(|m| m.elevation.as_ref()) {
+            let path = scene.dir.join(file);
+            g.load_elevation(&path)?;
+        }
+        let bounds = |poly: &[V2]| {
+            poly.iter()
+                .fold((poly[0], poly[0]), |(lo, hi), &p| (lo.min(p), hi.max(p)))
+        };
+        for s in &scene.surface {
+            let poly = s.polygon();
+            let (lo, hi) = bounds(&poly);
+            g.paint_in(
+                lo,
+                hi,
+                |p| point_polygon_distance(p, &poly) == 0.0,
+                |_| s.height,
+            );
+        }
+        for o in &scene.obstacle {
+            let top = o.top();
+            match o.polygon() {
+                Some(poly) => {
+                    let (lo, hi) = bounds(&poly);
+                    g.paint_in(
+                        lo,
+                        hi,
+                        |p| point_polygon_distance(p, &poly) == 0.0,
+                        |h| h.max(top),
+                    )
+                }
+                None => {
+                    let c = o.bounding_circle();
+                    let r = v2(c.r, c.r);
+                    g.paint_in(c.c - r, c.c + r, |p| c.contains(p), |h| h.max(top))
+                }
+            }
+        }
+        Ok(g)
+    }
+
+    /// The extent and cell of a scene's grid: its map (or its bounding box grown by
+    /// [`MARGIN`]) and resolution (0.05 m by default).
+    pub fn extent_of(scene: &Scene) -> ([f64; 2], [f64; 2], f64) {
         let res = scene
             .map
             .as_ref()
@@ -98,26 +143,7 @@ impl Grid {
                 )
             }
         };
-        let mut g = Grid::flat(x, y, res);
-        if let Some(file) = scene.map.as_ref().and_then(|m| m.elevation.as_ref()) {
-            let path = scene.dir.join(file);
-            g.load_elevation(&path)?;
-        }
-        for s in &scene.surface {
-            let poly = s.polygon();
-            g.paint(|p| point_polygon_distance(p, &poly) == 0.0, |_| s.height);
-        }
-        for o in &scene.obstacle {
-            let top = o.top();
-            match o.polygon() {
-                Some(poly) => g.paint(|p| point_polygon_distance(p, &poly) == 0.0, |h| h.max(top)),
-                None => {
-                    let c = o.bounding_circle();
-                    g.paint(|p| c.contains(p), |h| h.max(top))
-                }
-            }
-        }
-        Ok(g)
+        (x, y, res)
     }
 
     fn load_elevation(&mut self, path: &std::path::Path) -> Result<(), GridError> {
@@ -171,6 +197,35 @@ impl Grid {
     pub fn paint(&mut self, inside: impl Fn(V2) -> bool, f: impl Fn(f64) -> f64) {
         for j in 0..self.ny {
             for i in 0..self.nx {
+                if inside(self.centre(i, j)) {
+                    let k = j * self.nx + i;
+                    self.h[k] = f(self.h[k]);
+                }
+            }
+        }
+    }
+
+    /// Like [`Grid::paint`], looking only at the cells whose centres lie in `lo`..`hi`.
+    pub fn paint_in(
+        &mut self,
+        lo: V2,
+        hi: V2,
+        inside: impl Fn(V2) -> bool,
+        f: impl Fn(f64) -> f64,
+    ) {
+        let i0 = (((lo.x - self.origin.x) / self.res - 0.5).ceil()).max(0.0) as usize;
+        let j0 = (((lo.y - self.origin.y) / self.res - 0.5).ceil()).max(0.0) as usize;
+        let i1 = ((hi.x - self.origin.x) / self.res - 0.5).floor();
+        let j1 = ((hi.y - self.origin.y) / self.res - 0.5).floor();
+        if i1 < 0.0 || j1 < 0.0 {
+            return;
+        }
+        let (i1, j1) = (
+            (i1 as usize).min(self.nx - 1),
+            (j1 as usize).min(self.ny - 1),
+        );
+        for j in j0..=j1 {
+            for i in i0..=i1 {
                 if inside(self.centre(i, j)) {
                     let k = j * self.nx + i;
                     self.h[k] = f(self.h[k]);

@@ -9,9 +9,10 @@
 //! - improved ([`Mode::Improved`]): A* with duplicate detection on a lattice (0.05 m, 5°,
 //!   side) and a closed set, the same actions, an admissible energy bound
 //!   ([`kaist::h_improved`]) also taken along the 2-D way around tall cells
-//!   ([`Heuristic::Dijkstra2d`]), and an anytime schedule: weighted A* with a decreasing
-//!   weight (1.5, 1.2, 1), each pass pruned by the best plan so far, until the budget runs
-//!   out. The plan reports the weight of the last finished pass as its bound (the 2-D part is
+//!   ([`Heuristic::Dijkstra2d`]), and an anytime schedule: a scouting pass of weight 2 on a
+//!   coarse lattice (half the longest step, 15°) for a first plan at once, then weighted A* with
+//!   a decreasing weight (1.5, 1.2, 1) on the fine one, each pass pruned by the best plan so
+//!   far, until the budget runs out. The plan reports the weight of the last finished pass as its bound (the 2-D part is
 //!   a heuristic, not a proven bound: see [`Heuristic::Dijkstra2d`]). With no plan at the
 //!   budget, the node nearest the goal by the heuristic comes back as a partial plan.
 //!
@@ -116,12 +117,17 @@ pub struct Settings {
     pub weights: Vec<f64>,
     /// Lattice cell for duplicate detection: position (m) and yaw (degrees).
     pub lattice: (f64, f64),
+    /// A coarser lattice (position, yaw degrees) and a weight for a first, scouting pass
+    /// (improved mode): its plan comes quickly, without a bound, and prunes the passes after
+    /// it.
+    pub scout: Option<((f64, f64), f64)>,
 }
 
 impl Settings {
     /// The defaults for `mode` with `cost` (notes C.1: tolerance 0.1 m, full set within 0.6 m;
     /// the thesis's cap of 2000 and heuristic; in improved mode 200 ms, 200 000 expansions,
-    /// the 2-D heuristic, the weights 1.5, 1.2, 1 and a lattice of 0.05 m and 5°).
+    /// the 2-D heuristic, a scouting pass of weight 2 on a lattice of half the longest step and
+    /// 15°, then the weights 1.5, 1.2, 1 on a lattice of 0.05 m and 5°).
     pub fn new(mode: Mode, cost: CostParams) -> Settings {
         let thesis = mode == Mode::Thesis;
         Settings {
@@ -143,6 +149,7 @@ impl Settings {
                 vec![1.5, 1.2, 1.0]
             },
             lattice: (0.05, 5.0),
+            scout: (!thesis).then_some(((cost.l_max / 2.0, 15.0), 2.0)),
         }
     }
 }
@@ -400,6 +407,7 @@ fn pass(
     pr: &Problem,
     root: Node,
     weight: f64,
+    cells: (f64, f64),
     incumbent: f64,
     stats: &mut Stats,
     best: &mut (f64, Vec<Foot>),
@@ -415,7 +423,7 @@ fn pass(
         order,
         node: 0,
     });
-    let (cell, yaw_cell) = (s.lattice.0, s.lattice.1.to_radians());
+    let (cell, yaw_cell) = (cells.0, cells.1.to_radians());
     let key = |f: &Foot| {
         (
             (f.p.x / cell).round() as i64,
@@ -580,17 +588,23 @@ pub fn plan(start: V2, start_yaw: f64, goal: V2, world: &World, mode: Mode, s: &
         g: 0.0,
         parent: None,
     };
-    let weights = if lattice {
-        s.weights.clone()
+    // The passes: (weight, lattice, whether its result is bounded on the planner's lattice).
+    let mut passes: Vec<(f64, (f64, f64), bool)> = Vec::new();
+    if lattice {
+        if let Some((coarse, w)) = s.scout {
+            passes.push((w, coarse, false));
+        }
+        passes.extend(s.weights.iter().map(|&w| (w, s.lattice, true)));
     } else {
-        vec![1.0]
-    };
+        passes.push((1.0, s.lattice, false));
+    }
     let mut best_partial = (f64::INFINITY, vec![left]);
     let mut incumbent: Option<(f64, Vec<Foot>, Vec<V2>, f64)> = None;
     let mut why = "no foothold sequence reaches the goal";
-    for &w in &weights {
+    for &(w, cells, bounded) in &passes {
         let cap = incumbent.as_ref().map_or(f64::INFINITY, |b| b.0);
-        let (end, nodes) = pass(&pr, root, w, cap, &mut stats, &mut best_partial);
+        let (end, nodes) = pass(&pr, root, w, cells, cap, &mut stats, &mut best_partial);
+        let w = if bounded { w } else { f64::INFINITY };
         match end {
             Pass::Found(e) => {
                 stats.first_plan.get_or_insert(t1.elapsed());
@@ -606,13 +620,13 @@ pub fn plan(start: V2, start_yaw: f64, goal: V2, world: &World, mode: Mode, s: &
                 incumbent = Some((nodes[e].g, feet, path, w));
             }
             // Nothing cheaper than the incumbent within this weight: it stands, bound w.
-            Pass::Exhausted => {
-                if let Some(b) = incumbent.as_mut() {
-                    b.3 = w;
-                } else {
-                    break;
-                }
-            }
+            Pass::Exhausted => match incumbent.as_mut() {
+                Some(b) if bounded => b.3 = w,
+                Some(_) => {}
+                None if bounded => break,
+                // A scouting pass that runs dry proves nothing: the fine passes go on.
+                None => {}
+            },
             Pass::Stopped(reason) => {
                 why = reason;
                 break;
@@ -632,7 +646,7 @@ pub fn plan(start: V2, start_yaw: f64, goal: V2, world: &World, mode: Mode, s: &
             cost,
             steps: std::iter::once(right).chain(feet).collect(),
             stats,
-            bound: (lattice && admissible).then_some(w),
+            bound: (lattice && admissible && w.is_finite()).then_some(w),
         },
         None if lattice && best_partial.1.len() > 1 => {
             let feet = best_partial.1;

@@ -18,7 +18,8 @@
 //!   distance of the mid-stance point and heading from the goal. Consistent for k ≥ 1.
 //! - faithful ([`Mode::Thesis`]): the thesis's search tree (no duplicate detection), its
 //!   heuristic, no pre-planner coupling; at the budget it falls back to stepping in place.
-//! - improved ([`Mode::Improved`]): duplicate detection on a lattice (0.05 m, 5°, side), the
+//! - improved ([`Mode::Improved`]): a scouting pass on a coarse lattice (0.2 m, 15°, weight
+//!   2), then duplicate detection on a lattice (0.05 m, 5°, side), the
 //!   2-D pre-planner (a distance field over the tall obstacles, grown by a margin) coupled as
 //!   heuristic (the way's length: coupling 1) and as desired heading (the way's direction:
 //!   coupling 3), an optional horizon (the thesis's 7 steps), and the deadline: at the budget
@@ -117,6 +118,11 @@ pub struct Settings {
     pub couple_heading: bool,
     /// The weights of the anytime passes (improved mode; the last should be 1).
     pub weights: Vec<f64>,
+    /// Lattice cell for duplicate detection: position (m) and yaw (degrees).
+    pub lattice: (f64, f64),
+    /// A coarser lattice and a weight for a first, scouting pass (improved mode): its plan
+    /// comes quickly, without a bound, and prunes the passes after it.
+    pub scout: Option<((f64, f64), f64)>,
 }
 
 impl Settings {
@@ -138,7 +144,9 @@ impl Settings {
             margin: 0.1,
             couple_heuristic: improved,
             couple_heading: improved,
-            weights: vec![2.0, 1.5, 1.2, 1.0],
+            weights: vec![1.5, 1.2, 1.0],
+            lattice: (0.05, 5.0),
+            scout: improved.then_some(((0.2, 15.0), 2.0)),
         }
     }
 }
@@ -167,15 +175,8 @@ pub const EDGE_RADIUS: f64 = 0.01;
 impl World {
     /// The world of a scene (extruded polygons stand in as their bounding cylinders).
     pub fn of(scene: &Scene) -> World {
-        let grid = Grid::of_scene(scene).ok();
-        let map = match (&scene.map, &grid) {
-            (Some(m), _) => (m.x, m.y),
-            (None, Some(g)) => (
-                [g.origin.x, g.origin.x + g.nx as f64 * g.res],
-                [g.origin.y, g.origin.y + g.ny as f64 * g.res],
-            ),
-            _ => ([-10.0, 10.0], [-10.0, 10.0]),
-        };
+        let (x, y, _) = Grid::extent_of(scene);
+        let map = (x, y);
         let mut things = Vec::new();
         for o in &scene.obstacle {
             let solid = match *o {
@@ -359,25 +360,25 @@ impl World {
         }
         near.sort_by(|a, b| b.top.total_cmp(&a.top));
         // The swept volume, sampled: the first obstacle met, tallest first, is the answer.
-        let at_origin = self.foot_solids(v2(0.0, 0.0), yaw, z, r);
-        let shank0 = self.shank(v2(0.0, 0.0), yaw, z, tilt, r);
-        let samples: Vec<(Solid, Aabb)> = (0..=n)
-            .flat_map(|i| {
-                let p = from.p + (to.p - from.p) * (i as f64 / n as f64);
-                let t = parry3d_f64::math::Vector::new(p.x, p.y, 0.0);
-                [at_origin[0], at_origin[1], shank0].map(|s| s.translated(t))
-            })
-            .map(|s| (s, s.aabb()))
-            .collect();
+        // The swept volume, sampled: the solids at the origin and their boxes, moved to each
+        // sample only where a box meets the obstacle's. The first obstacle met, tallest first,
+        // is the answer.
+        let [fa, fb] = self.foot_solids(v2(0.0, 0.0), yaw, z, r);
+        let base_solids = [fa, fb, self.shank(v2(0.0, 0.0), yaw, z, tilt, r)];
+        let base_boxes = base_solids.map(|s| s.aabb());
         for t in near {
             if t.top - base <= 0.0 {
                 break;
             }
-            let hit = samples.iter().any(|(s, bb)| {
-                bb.intersects(&t.aabb) && {
-                    stats.collision_queries += 1;
-                    overlaps(s, &t.solid)
-                }
+            let hit = (0..=n).any(|i| {
+                let p = from.p + (to.p - from.p) * (i as f64 / n as f64);
+                let shift = parry3d_f64::math::Vector::new(p.x, p.y, 0.0);
+                base_solids.iter().zip(&base_boxes).any(|(s, bb)| {
+                    Aabb::new(bb.mins + shift, bb.maxs + shift).intersects(&t.aabb) && {
+                        stats.collision_queries += 1;
+                        overlaps(&s.translated(shift), &t.solid)
+                    }
+                })
             });
             if hit {
                 return t.top - base;
@@ -648,21 +649,36 @@ pub fn plan(
         depth: 0,
         parent: None,
     };
-    let mut weights = if lattice {
-        s.weights.clone()
+    // The passes: (weight, lattice, whether its result is bounded on the planner's lattice).
+    let mut passes: Vec<(f64, (f64, f64), bool)> = Vec::new();
+    if lattice {
+        if let Some((coarse, w)) = s.scout {
+            passes.push((w, coarse, false));
+        }
+        passes.extend(s.weights.iter().map(|&w| (w, s.lattice, true)));
     } else {
-        vec![1.0]
-    };
+        passes.push((1.0, s.lattice, false));
+    }
     // Towards a horizon, cost alone does not rank plans: one pass.
     if s.horizon.is_some() {
-        weights.truncate(1);
+        passes.truncate(1);
     }
     let mut best = (pr.h(&left), vec![root], 0usize);
     let mut found: Option<(Vec<Node>, usize, Status, f64)> = None;
     let mut why = "no foothold sequence reaches the goal";
-    for &w in &weights {
+    for &(w, cells, bounded) in &passes {
         let cap = found.as_ref().map_or(f64::INFINITY, |f| f.0[f.1].g);
-        let out = pass(&pr, root, w, lattice, cap, deadline, &mut stats, &mut best);
+        let out = pass(
+            &pr,
+            root,
+            (w, cells),
+            lattice,
+            cap,
+            deadline,
+            &mut stats,
+            &mut best,
+        );
+        let w = if bounded { w } else { f64::INFINITY };
         match out {
             Pass::Found(nodes, i, status) => {
                 stats.first_plan.get_or_insert(t1.elapsed());
@@ -672,9 +688,13 @@ pub fn plan(
                 }
                 found = Some((nodes, i, status, w));
             }
+            // Nothing cheaper below the incumbent within this weight: it stands, bound w. A
+            // scouting pass that runs dry proves nothing: the fine passes go on.
             Pass::Exhausted => match found.as_mut() {
-                Some(f) => f.3 = w,
-                None => break,
+                Some(f) if bounded => f.3 = w,
+                Some(_) => {}
+                None if bounded => break,
+                None => {}
             },
             Pass::Stopped(reason) => {
                 why = reason;
@@ -684,7 +704,12 @@ pub fn plan(
     }
     stats.search = t1.elapsed();
     let (nodes, last, status, bound) = match found {
-        Some((nodes, i, status, w)) => (nodes, i, status, (status == Status::Ok).then_some(w)),
+        Some((nodes, i, status, w)) => (
+            nodes,
+            i,
+            status,
+            (status == Status::Ok && w.is_finite()).then_some(w),
+        ),
         // The deadline: the best partial plan (improved mode), or steps in place.
         None if lattice && best.2 != 0 => (best.1, best.2, Status::Partial, None),
         None => {
@@ -740,7 +765,7 @@ enum Pass {
 fn pass(
     pr: &Problem,
     root: Node,
-    weight: f64,
+    (weight, cells): (f64, (f64, f64)),
     lattice: bool,
     incumbent: f64,
     deadline: Instant,
@@ -753,9 +778,9 @@ fn pass(
     let key = |f: &Foot| {
         let m = mid(f, r.width);
         (
-            (m.x / 0.05).round() as i64,
-            (m.y / 0.05).round() as i64,
-            (wrap(f.yaw) / 5f64.to_radians()).round() as i64,
+            (m.x / cells.0).round() as i64,
+            (m.y / cells.0).round() as i64,
+            (wrap(f.yaw) / cells.1.to_radians()).round() as i64,
             f.left,
         )
     };
