@@ -208,6 +208,49 @@ pub fn segments_cross(a: V2, b: V2, c: V2, d: V2) -> bool {
     (d1 * d2 < 0.0) && (d3 * d4 < 0.0)
 }
 
+/// The rectangle of `size` (length along `yaw`, width) centred on `c`, counter-clockwise.
+pub fn rectangle(c: V2, yaw: f64, size: (f64, f64)) -> [V2; 4] {
+    let (d, s) = (V2::polar(yaw), v2(-yaw.sin(), yaw.cos()));
+    let (l, w) = (size.0 / 2.0, size.1 / 2.0);
+    [(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)].map(|(a, b)| c + d * (a * l) + s * (b * w))
+}
+
+/// An obstacle's footprint (a convex polygon, counter-clockwise) grown by a foot of `size`
+/// turned to `yaw`: the places of the foot's centre at which its sole overlaps the footprint
+/// (their Minkowski sum), counter-clockwise. A foothold check at that yaw is then a point test.
+pub fn foot_cspace(footprint: &[V2], size: (f64, f64), yaw: f64) -> Vec<V2> {
+    let foot = rectangle(v2(0.0, 0.0), yaw, size);
+    let sums: Vec<V2> = footprint
+        .iter()
+        .flat_map(|&p| foot.iter().map(move |&q| p - q))
+        .collect();
+    convex_hull(sums)
+}
+
+/// The convex hull of a point set, counter-clockwise (Andrew's monotone chain).
+pub fn convex_hull(mut pts: Vec<V2>) -> Vec<V2> {
+    pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    pts.dedup_by(|a, b| a.dist(*b) < 1e-12);
+    if pts.len() < 3 {
+        return pts;
+    }
+    let half = |it: &mut dyn Iterator<Item = &V2>| {
+        let mut h: Vec<V2> = Vec::new();
+        for &p in it {
+            while h.len() >= 2 && (h[h.len() - 1] - h[h.len() - 2]).cross(p - h[h.len() - 2]) <= 0.0
+            {
+                h.pop();
+            }
+            h.push(p);
+        }
+        h.pop();
+        h
+    };
+    let mut lower = half(&mut pts.iter());
+    lower.extend(half(&mut pts.iter().rev()));
+    lower
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 
 use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 
-use crate::geom::{convex_overlap, v2, wrap, V2};
+use crate::geom::{convex_overlap, foot_cspace, rectangle, v2, wrap, V2};
 use crate::grid::Grid;
 use crate::plan::{Foot, Least, Plan, Stats, Status};
 use crate::scene::{Obstacle, Scene};
@@ -157,6 +157,9 @@ struct Thing {
     solid: Solid,
     aabb: Aabb,
     top: f64,
+    /// For an upright box: its footprint and the height of its bottom (a foothold test is then
+    /// a point test against the footprint grown by the turned sole: [`foot_cspace`]).
+    prism: Option<(Vec<V2>, f64)>,
 }
 
 /// The world: the map, the surfaces, the obstacles (with the surfaces' edges).
@@ -238,6 +241,14 @@ impl World {
             .map(|solid| Thing {
                 aabb: solid.aabb(),
                 top: solid.top(),
+                prism: match solid {
+                    Solid::Box { centre, yaw, half } => Some((
+                        rectangle(v2(centre.x, centre.y), yaw, (2.0 * half.x, 2.0 * half.y))
+                            .to_vec(),
+                        centre.z - half.z,
+                    )),
+                    _ => None,
+                },
                 solid,
             })
             .collect();
@@ -317,12 +328,22 @@ impl World {
                 return None;
             }
         }
-        for s in self.foot_solids(f.p, f.yaw, z, r) {
-            let bb = s.aabb();
-            for t in &self.things {
-                if bb.intersects(&t.aabb) {
-                    stats.collision_queries += 1;
-                    if overlaps(&s, &t.solid) {
+        let solids = self.foot_solids(f.p, f.yaw, z, r);
+        let reach = solids[0].aabb().merged(&solids[1].aabb());
+        for t in &self.things {
+            if !reach.intersects(&t.aabb) {
+                continue;
+            }
+            stats.collision_queries += 1;
+            match &t.prism {
+                // An upright box from the sole's level up: the sole's rectangle decides.
+                Some((footprint, bottom)) if *bottom <= z + 2.0 * r.sole_radius => {
+                    if in_convex(f.p, &foot_cspace(footprint, r.foot, f.yaw)) {
+                        return None;
+                    }
+                }
+                _ => {
+                    if solids.iter().any(|s| overlaps(s, &t.solid)) {
                         return None;
                     }
                 }

@@ -30,6 +30,7 @@ impl Default for World {
         World::from_scene(Scene {
             name: "bus".into(),
             description: "obstacles from the bus".into(),
+            reference: String::new(),
             start: Pose::default(),
             goal: Pose::default(),
             obstacle: Vec::new(),

@@ -14,7 +14,7 @@
 //! radius = 0.5
 //! ```
 
-use crate::geom::{v2, Circle, V2};
+use crate::geom::{convex_hull, v2, Circle, V2};
 
 /// A pose in the plane.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Deserialize)]
@@ -239,39 +239,6 @@ fn rounded_hull(pts: &[V2], r: f64) -> Vec<V2> {
     convex_hull(cloud)
 }
 
-/// The convex hull of a point set, counter-clockwise (Andrew's monotone chain).
-pub fn convex_hull(mut pts: Vec<V2>) -> Vec<V2> {
-    pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
-    pts.dedup_by(|a, b| a.dist(*b) < 1e-12);
-    if pts.len() < 3 {
-        return pts;
-    }
-    let mut lower: Vec<V2> = Vec::new();
-    for p in &pts {
-        while lower.len() >= 2
-            && (lower[lower.len() - 1] - lower[lower.len() - 2]).cross(*p - lower[lower.len() - 2])
-                <= 0.0
-        {
-            lower.pop();
-        }
-        lower.push(*p);
-    }
-    let mut upper: Vec<V2> = Vec::new();
-    for p in pts.iter().rev() {
-        while upper.len() >= 2
-            && (upper[upper.len() - 1] - upper[upper.len() - 2]).cross(*p - upper[upper.len() - 2])
-                <= 0.0
-        {
-            upper.pop();
-        }
-        upper.push(*p);
-    }
-    lower.pop();
-    upper.pop();
-    lower.extend(upper);
-    lower
-}
-
 /// A steppable surface: a convex polygon at a height.
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -319,6 +286,10 @@ pub struct Scene {
     /// What it is, where it comes from.
     #[serde(default)]
     pub description: String,
+    /// What the seed's thesis reports for this scene, if anything (shown beside the
+    /// benchmark's figures).
+    #[serde(default)]
+    pub reference: String,
     /// The robot's start (its centre of mass over the ground, between the feet).
     pub start: Pose,
     /// The goal.

@@ -1,8 +1,14 @@
-//! The SSV distances against dense sampling (the notes' G1): the exact core distance is never
-//! above the least sampled one, and the samples come within their spacing of it; closest
-//! points lie on the solids at that distance; the gradient matches a finite difference.
+//! The geometry against dense sampling: the SSV distances (the notes' G1: the exact core
+//! distance is never above the least sampled one, and the samples come within their spacing
+//! of it; closest points lie on the solids at that distance; the gradient matches a finite
+//! difference), boxes against the exact distance, and the foot's configuration space of a
+//! footprint against placing the sole.
 
 use proptest::prelude::*;
+use stride_footstep_planner::geom::{
+    convex_hull, convex_overlap, foot_cspace, point_polygon_distance, point_segment_distance,
+    rectangle, v2, V2,
+};
 use stride_footstep_planner::ssv::{closest_cores, proximity, Core, Solid, P3, V3};
 
 fn pt() -> impl Strategy<Value = P3> {
@@ -109,5 +115,48 @@ proptest! {
         let inside = (local.x.abs() - half.x).max(local.y.abs() - half.y).max(local.z.abs() - half.z);
         let exact = if inside > 0.0 { out.norm() } else { inside } - r;
         prop_assert!((pr.distance - exact).abs() < 1e-6, "{} vs {exact}", pr.distance);
+    }
+}
+
+/// A random convex polygon: the hull of a few points.
+fn convex() -> impl Strategy<Value = Vec<V2>> {
+    prop::collection::vec((-0.5f64..0.5, -0.5f64..0.5), 3..8).prop_filter_map(
+        "a polygon with area",
+        |pts| {
+            let hull = convex_hull(pts.into_iter().map(|(x, y)| v2(x, y)).collect());
+            let area: f64 = (0..hull.len())
+                .map(|i| hull[i].cross(hull[(i + 1) % hull.len()]))
+                .sum();
+            (hull.len() >= 3 && area > 1e-3).then_some(hull)
+        },
+    )
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(100))]
+
+    /// The foot's configuration space of a footprint: over a dense grid of foot centres, a
+    /// centre is inside it exactly when the turned sole overlaps the footprint (away from its
+    /// border, where the overlap test's tolerance of a micrometre decides).
+    #[test]
+    fn foot_cspace_against_dense_sampling(poly in convex(), yaw in -3.2f64..3.2) {
+        let size = (0.22, 0.12);
+        let cs = foot_cspace(&poly, size, yaw);
+        let border = |p: V2| {
+            (0..cs.len())
+                .map(|i| point_segment_distance(p, cs[i], cs[(i + 1) % cs.len()]))
+                .fold(f64::INFINITY, f64::min)
+        };
+        let inside = |p: V2| point_polygon_distance(p, &cs) == 0.0;
+        for i in 0..40 {
+            for j in 0..40 {
+                let p = v2(-1.0 + i as f64 * 0.05, -1.0 + j as f64 * 0.05);
+                if border(p) < 1e-5 {
+                    continue;
+                }
+                let sole = rectangle(p, yaw, size);
+                prop_assert_eq!(inside(p), convex_overlap(&sole, &poly), "{:?}", p);
+            }
+        }
     }
 }
