@@ -501,6 +501,21 @@ fn trace(nodes: &[Node], end: usize) -> Vec<Foot> {
 /// Plans from the robot standing at `start` (feet side by side, the right one to swing first)
 /// to `goal` (a position).
 pub fn plan(start: V2, start_yaw: f64, goal: V2, world: &World, mode: Mode, s: &Settings) -> Plan {
+    let (left, right) = Foot::standing(start, start_yaw, s.cost.w_nom);
+    plan_from(left, right, goal, world, mode, s)
+}
+
+/// Plans from the stance foot `stance` (where it stands now; its height is looked up) with
+/// the other foot, `swing`, to step next, to `goal` (a position). The plan's steps start with
+/// `swing` where it stands.
+pub fn plan_from(
+    stance: Foot,
+    swing: Foot,
+    goal: V2,
+    world: &World,
+    mode: Mode,
+    s: &Settings,
+) -> Plan {
     let t0 = Instant::now();
     let p = &s.cost;
     let mut stats = Stats::default();
@@ -508,8 +523,8 @@ pub fn plan(start: V2, start_yaw: f64, goal: V2, world: &World, mode: Mode, s: &
     if !g.contains(goal) {
         return Plan::failed(Status::GoalOutsideMap, "the goal is outside the map", stats);
     }
-    let (mut left, mut right) = Foot::standing(start, start_yaw, p.w_nom);
-    for f in [&mut left, &mut right] {
+    let (mut stance, mut swing) = (stance, swing);
+    for f in [&mut stance, &mut swing] {
         stats.collision_queries += 1;
         let under = g.height(f.p);
         match world.foothold(f, under, &s.feasibility) {
@@ -523,7 +538,7 @@ pub fn plan(start: V2, start_yaw: f64, goal: V2, world: &World, mode: Mode, s: &
             }
         }
     }
-    let ground = left.z.min(right.z);
+    let ground = stance.z.min(swing.z);
     let at_goal = g.height(goal);
     if at_goal.is_nan() || at_goal > ground + s.feasibility.body_height {
         return Plan::failed(
@@ -583,8 +598,8 @@ pub fn plan(start: V2, start_yaw: f64, goal: V2, world: &World, mode: Mode, s: &
         deadline: t1 + s.budget,
     };
     let root = Node {
-        stance: left,
-        other: right,
+        stance,
+        other: swing,
         g: 0.0,
         parent: None,
     };
@@ -598,7 +613,7 @@ pub fn plan(start: V2, start_yaw: f64, goal: V2, world: &World, mode: Mode, s: &
     } else {
         passes.push((1.0, s.lattice, false));
     }
-    let mut best_partial = (f64::INFINITY, vec![left]);
+    let mut best_partial = (f64::INFINITY, vec![stance]);
     let mut incumbent: Option<(f64, Vec<Foot>, Vec<V2>, f64)> = None;
     let mut why = "no foothold sequence reaches the goal";
     for &(w, cells, bounded) in &passes {
@@ -644,20 +659,20 @@ pub fn plan(start: V2, start_yaw: f64, goal: V2, world: &World, mode: Mode, s: &
             detail: String::new(),
             path,
             cost,
-            steps: std::iter::once(right).chain(feet).collect(),
+            steps: std::iter::once(swing).chain(feet).collect(),
             stats,
             bound: (lattice && admissible && w.is_finite()).then_some(w),
         },
         None if lattice && best_partial.1.len() > 1 => {
             let feet = best_partial.1;
             let mut path = Vec::new();
-            let mut prev = right;
+            let mut prev = swing;
             for f in &feet {
                 path.push((f.p + prev.p) * 0.5);
                 prev = *f;
             }
             let mut cost = 0.0;
-            let mut steps = vec![right];
+            let mut steps = vec![swing];
             steps.extend(feet);
             for w in steps.windows(2).skip(1) {
                 // The cost of each step, from the action's geometry.

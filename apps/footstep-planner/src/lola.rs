@@ -599,11 +599,26 @@ pub fn plan(
     mode: Mode,
     s: &Settings,
 ) -> Plan {
+    let (left, right) = Foot::standing(start, start_yaw, s.robot.width);
+    plan_from(left, right, goal, goal_yaw, world, mode, s)
+}
+
+/// Plans from the stance foot `stance` with the other foot, `swing`, to step next, to the goal
+/// pose. The plan's steps start with `swing` where it stands.
+pub fn plan_from(
+    stance: Foot,
+    swing: Foot,
+    goal: V2,
+    goal_yaw: f64,
+    world: &World,
+    mode: Mode,
+    s: &Settings,
+) -> Plan {
     let t0 = Instant::now();
     let mut stats = Stats::default();
     let r = &s.robot;
-    let (mut left, mut right) = Foot::standing(start, start_yaw, r.width);
-    for f in [&mut left, &mut right] {
+    let (mut stance, mut swing) = (stance, swing);
+    for f in [&mut stance, &mut swing] {
         match world.foothold(f, r, &mut stats) {
             Some(z) => f.z = z,
             None => {
@@ -664,8 +679,8 @@ pub fn plan(
     let deadline = t1 + s.budget;
     let lattice = mode == Mode::Improved;
     let root = Node {
-        stance: left,
-        other: right,
+        stance,
+        other: swing,
         g: 0.0,
         depth: 0,
         parent: None,
@@ -684,7 +699,7 @@ pub fn plan(
     if s.horizon.is_some() {
         passes.truncate(1);
     }
-    let mut best = (pr.h(&left), vec![root], 0usize);
+    let mut best = (pr.h(&stance), vec![root], 0usize);
     let mut found: Option<(Vec<Node>, usize, Status, f64)> = None;
     let mut why = "no foothold sequence reaches the goal";
     for &(w, cells, bounded) in &passes {
@@ -734,11 +749,11 @@ pub fn plan(
         // The deadline: the best partial plan (improved mode), or steps in place.
         None if lattice && best.2 != 0 => (best.1, best.2, Status::Partial, None),
         None => {
-            let steps = in_place(right, left);
+            let steps = in_place(swing, stance);
             return Plan {
                 status: Status::Partial,
                 detail: format!("{why}: stepping in place"),
-                path: vec![start],
+                path: vec![(stance.p + swing.p) * 0.5],
                 cost: 0.0,
                 steps,
                 stats,
@@ -752,7 +767,7 @@ pub fn plan(
         feet.push(nodes[i].stance);
         at = nodes[i].parent;
     }
-    feet.push(right);
+    feet.push(swing);
     feet.reverse();
     let path = feet.iter().skip(1).map(|f| mid(f, r.width)).collect();
     Plan {

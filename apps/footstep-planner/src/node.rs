@@ -122,7 +122,7 @@ pub fn plan_request(req: &FootstepPlanRequestT, world: &World) -> (FootstepPlanT
             ),
             Stats::default(),
         );
-        return (to_msg(req, &plan, true), Vec::new(), 0.0);
+        return (to_msg(req, &plan, 0, true), Vec::new(), 0.0);
     };
     let r = Request {
         planner: which,
@@ -140,6 +140,7 @@ pub fn plan_request(req: &FootstepPlanRequestT, world: &World) -> (FootstepPlanT
             z: 0.0,
         },
         horizon: None,
+        feet: Some((foot_of(&req.stance), foot_of(&req.swing))),
     };
     let budget = if req.max_time_us > 0 {
         Duration::from_micros(req.max_time_us as u64)
@@ -157,7 +158,23 @@ pub fn plan_request(req: &FootstepPlanRequestT, world: &World) -> (FootstepPlanT
         Which::Archie => Params::improved().inflation,
         _ => 0.1,
     };
-    (to_msg(req, &plan, false), plan.path.clone(), inflation)
+    // Archie's footsteps list the standing foot, then the steps; the footstep planners list
+    // both feet where they stand first.
+    let standing = if which == Which::Archie { 1 } else { 2 };
+    (
+        to_msg(req, &plan, standing, false),
+        plan.path.clone(),
+        inflation,
+    )
+}
+
+fn foot_of(f: &FootT) -> Foot {
+    Foot {
+        p: v2(f.x, f.y),
+        z: f.z,
+        yaw: f.yaw,
+        left: f.side == FootT::SIDE_LEFT,
+    }
 }
 
 fn foot_msg(f: &Foot) -> FootT {
@@ -174,9 +191,15 @@ fn foot_msg(f: &Foot) -> FootT {
     }
 }
 
-/// The plan as a message: the steps after the standing foot, starting with the request's
-/// swing foot, padded with steps in place to at least three; the request's ids echoed.
-pub fn to_msg(req: &FootstepPlanRequestT, plan: &Plan, bad_request: bool) -> FootstepPlanT {
+/// The plan as a message: the steps after the first `standing` feet of the plan (where the
+/// feet stand), starting with the request's swing foot, padded with steps in place to at
+/// least three; the request's ids echoed.
+pub fn to_msg(
+    req: &FootstepPlanRequestT,
+    plan: &Plan,
+    standing: usize,
+    bad_request: bool,
+) -> FootstepPlanT {
     let status = if bad_request {
         FootstepPlanT::STATUS_BAD_REQUEST
     } else {
@@ -191,8 +214,8 @@ pub fn to_msg(req: &FootstepPlanRequestT, plan: &Plan, bad_request: bool) -> Foo
     };
     let swing_left = req.swing.side == FootT::SIDE_LEFT;
     let mut feet: Vec<(FootT, bool)> = Vec::new();
-    // The planners' first foot is the standing (right) one; the steps follow.
-    let mut planned: Vec<FootT> = plan.steps.iter().skip(1).map(foot_msg).collect();
+    // The plan's first `standing` feet are where the feet stand; the steps follow.
+    let mut planned: Vec<FootT> = plan.steps.iter().skip(standing).map(foot_msg).collect();
     if planned
         .first()
         .is_some_and(|f| (f.side == FootT::SIDE_LEFT) != swing_left)
@@ -429,6 +452,13 @@ mod tests {
                 for w in msg.steps.windows(2) {
                     assert_ne!(w[0].foot.side, w[1].foot.side);
                 }
+                // The first step is the swing foot's, forwards: not a step in place.
+                let first = &msg.steps[0];
+                assert_eq!(first.foot.side, FootT::SIDE_LEFT);
+                assert!(
+                    !first.is_padding && first.foot.x > 0.05,
+                    "{planner}: {first:?}"
+                );
             }
         }
     }

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use crate::archie::{self, headings, Params};
 use crate::kaist::CostParams;
-use crate::plan::{Plan, Stats, Status};
+use crate::plan::{Foot, Plan, Stats, Status};
 use crate::scene::{Pose, Scene};
 use crate::steps::{self, StepParams};
 use crate::{kaist_search, lola};
@@ -35,6 +35,10 @@ pub struct Request {
     pub goal: Pose,
     /// Steps at most (a receding horizon; LOLA's planner), if set.
     pub horizon: Option<usize>,
+    /// Where the feet are, if known: the stance foot and the one to step next (the footstep
+    /// planners start from them; otherwise from the feet side by side at `start`, the right
+    /// one to step first).
+    pub feet: Option<(Foot, Foot)>,
 }
 
 /// The scene with the request's start and goal (so a map made from the scene's extent holds
@@ -88,7 +92,10 @@ pub fn plan(req: &Request, world: &Scene, budget: Duration) -> Plan {
             };
             let mut s = kaist_search::Settings::new(mode, cost);
             s.budget = budget;
-            kaist_search::plan(start, req.start.yaw, goal, &w, mode, &s)
+            let (stance, swing) = req
+                .feet
+                .unwrap_or_else(|| Foot::standing(start, req.start.yaw, s.cost.w_nom));
+            kaist_search::plan_from(stance, swing, goal, &w, mode, &s)
         }
         Which::Lola => {
             let w = lola::World::of(&scene_for(world, req));
@@ -100,7 +107,10 @@ pub fn plan(req: &Request, world: &Scene, budget: Duration) -> Plan {
             let mut s = lola::Settings::new(mode);
             s.budget = budget;
             s.horizon = req.horizon;
-            lola::plan(start, req.start.yaw, goal, req.goal.yaw, &w, mode, &s)
+            let (stance, swing) = req
+                .feet
+                .unwrap_or_else(|| Foot::standing(start, req.start.yaw, s.robot.width));
+            lola::plan_from(stance, swing, goal, req.goal.yaw, &w, mode, &s)
         }
     }
 }
@@ -124,5 +134,6 @@ pub fn scene_request(scene: &Scene, faithful: bool) -> Request {
         start: scene.start,
         goal: scene.goal,
         horizon: None,
+        feet: None,
     }
 }

@@ -326,3 +326,77 @@ fn start_and_goal_checks() {
     let p = plan(v2(0.0, 0.0), 0.0, v2(5.0, 0.0), &w, Mode::Improved, &st);
     assert_eq!(p.status, Status::GoalOutsideMap);
 }
+
+/// B7 (notes C.4): a closed loop. The robot walks 6 m, replanning from where its feet are
+/// before every step; at the third step a 0.5 x 0.5 x 1.8 m person appears 1 m in front of it.
+/// No step lands on the person, every replan answers, and the robot arrives.
+#[test]
+fn b7_closed_loop_with_a_person_stepping_in() {
+    let mut scene = Scene::parse(
+        "name = \"kaist-b7\"\nstart = { x = 0.0, y = 0.0 }\ngoal = { x = 6.0, y = 0.0 }\n\
+         [map]\nx = [-1.0, 7.0]\ny = [-1.5, 1.5]\n",
+        &std::env::temp_dir(),
+    )
+    .unwrap();
+    let mut world = World::of(&scene).unwrap();
+    let mut st = Settings::new(Mode::Improved, CostParams::kaist_sim());
+    st.budget = Duration::from_secs(600);
+    st.max_expansions = 20_000;
+    let goal = v2(6.0, 0.0);
+    let (mut stance, mut swing) = Foot::standing(v2(0.0, 0.0), 0.0, 0.2);
+    let mut person = None;
+    for step in 0..40 {
+        if (stance.p + swing.p).dist(goal * 2.0) < 0.2 {
+            break;
+        }
+        if step == 3 {
+            let centre = (stance.p + swing.p) * 0.5;
+            let ahead = centre + V2::polar(stance.yaw) * 1.0;
+            scene.obstacle.push(
+                Scene::parse(
+                    &format!(
+                        "name = \"p\"\nstart = {{ x = 0.0, y = 0.0 }}\ngoal = {{ x = 0.0, y = 0.0 }}\n\
+                         [[obstacle]]\nshape = \"box\"\nx = {}\ny = {}\nlength = 0.5\nwidth = 0.5\nheight = 1.8\n",
+                        ahead.x, ahead.y
+                    ),
+                    &std::env::temp_dir(),
+                )
+                .unwrap()
+                .obstacle[0]
+                    .clone(),
+            );
+            world = World::of(&scene).unwrap();
+            person = Some(ahead);
+        }
+        let p = stride_footstep_planner::kaist_search::plan_from(
+            stance,
+            swing,
+            goal,
+            &world,
+            Mode::Improved,
+            &st,
+        );
+        assert!(
+            matches!(p.status, Status::Ok | Status::Partial),
+            "step {step}: {:?} {}",
+            p.status,
+            p.detail
+        );
+        // Execute the first step of the plan.
+        let next = p.steps[2];
+        assert!(
+            world.foot_clear(&next, &Feasibility::default()),
+            "step {step}: {next:?}"
+        );
+        if let Some(c) = person {
+            assert!(next.p.dist(c) > 0.25, "step {step} lands by the person");
+        }
+        (stance, swing) = (next, stance);
+    }
+    assert!(person.is_some());
+    assert!(
+        ((stance.p + swing.p) * 0.5).dist(goal) < 0.1,
+        "arrived at {:?}",
+        (stance.p + swing.p) * 0.5
+    );
+}
