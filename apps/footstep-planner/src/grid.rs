@@ -367,10 +367,50 @@ impl Grid {
     /// through cells that `passable` accepts; infinite where no such path is. Row by row from
     /// the least y, as [`Grid::h`].
     pub fn distance_field(&self, goal: V2, passable: impl Fn(f64) -> bool) -> Vec<f64> {
-        let mut dist = vec![f64::INFINITY; self.nx * self.ny];
-        let Some((gi, gj)) = self.cell(goal) else {
-            return dist;
+        match self.cell(goal) {
+            Some((gi, gj)) => self.distance_from(&[gj * self.nx + gi], passable),
+            None => vec![f64::INFINITY; self.nx * self.ny],
+        }
+    }
+
+    /// The cells from `from` down a distance field to its zero, steepest first (16 moves);
+    /// empty when `from` is off the map or cannot reach it.
+    pub fn way(&self, field: &[f64], from: V2) -> Vec<usize> {
+        let Some((i, j)) = self.cell(from) else {
+            return Vec::new();
         };
+        let mut k = j * self.nx + i;
+        if !field[k].is_finite() {
+            return Vec::new();
+        }
+        let mut out = vec![k];
+        while field[k] > 0.0 {
+            let (ci, cj) = ((k % self.nx) as i64, (k / self.nx) as i64);
+            let mut next = (field[k], k);
+            for a in -2i64..=2 {
+                for b in -2i64..=2 {
+                    let (x, y) = (ci + a, cj + b);
+                    if x >= 0 && y >= 0 && (x as usize) < self.nx && (y as usize) < self.ny {
+                        let nk = y as usize * self.nx + x as usize;
+                        if field[nk] < next.0 {
+                            next = (field[nk], nk);
+                        }
+                    }
+                }
+            }
+            if next.1 == k {
+                break;
+            }
+            k = next.1;
+            out.push(k);
+        }
+        out
+    }
+
+    /// Distances from every cell to the nearest of the cells `sources` along 16-connected
+    /// moves through cells that `passable` accepts (see [`Grid::distance_field`]).
+    pub fn distance_from(&self, sources: &[usize], passable: impl Fn(f64) -> bool) -> Vec<f64> {
+        let mut dist = vec![f64::INFINITY; self.nx * self.ny];
         let moves: Vec<(i64, i64, f64)> = [
             (1, 0),
             (0, 1),
@@ -385,9 +425,11 @@ impl Grid {
         .flat_map(|&(a, b): &(i64, i64)| [(a, b), (-a, -b)])
         .map(|(a, b)| (a, b, ((a * a + b * b) as f64).sqrt() * self.res))
         .collect();
-        let start = gj * self.nx + gi;
-        dist[start] = 0.0;
-        let mut heap = BinaryHeap::from([Least(0.0, start)]);
+        let mut heap = BinaryHeap::new();
+        for &k in sources {
+            dist[k] = 0.0;
+            heap.push(Least(0.0, k));
+        }
         while let Some(Least(d, k)) = heap.pop() {
             if d > dist[k] {
                 continue;

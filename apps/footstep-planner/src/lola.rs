@@ -22,8 +22,9 @@
 //!   2), then duplicate detection on a lattice (0.05 m, 5°, side), the
 //!   2-D pre-planner (a distance field over the tall obstacles, grown by a margin) coupled as
 //!   heuristic (the way's length: coupling 1) and as desired heading (the way's direction:
-//!   coupling 3), an optional horizon (the thesis's 7 steps), and the deadline: at the budget
-//!   the best partial plan, or steps in place when none gets nearer.
+//!   coupling 3), optionally as a corridor (coupling 2: off by default, it made no plan
+//!   faster on the shipped scenes), an optional horizon (the thesis's 7 steps), and the
+//!   deadline: at the budget the best partial plan, or steps in place when none gets nearer.
 
 use std::collections::{BinaryHeap, HashMap};
 use std::time::{Duration, Instant};
@@ -116,6 +117,9 @@ pub struct Settings {
     pub couple_heuristic: bool,
     /// Coupling 3: the pre-planner's way as desired heading.
     pub couple_heading: bool,
+    /// Coupling 2: suggestions whose mid-stance point lies farther than this from the
+    /// pre-planner's way are dropped, m.
+    pub corridor: Option<f64>,
     /// The weights of the anytime passes (improved mode; the last should be 1).
     pub weights: Vec<f64>,
     /// Lattice cell for duplicate detection: position (m) and yaw (degrees).
@@ -144,6 +148,7 @@ impl Settings {
             margin: 0.1,
             couple_heuristic: improved,
             couple_heading: improved,
+            corridor: None,
             weights: vec![1.5, 1.2, 1.0],
             lattice: (0.05, 5.0),
             scout: improved.then_some(((0.2, 15.0), 2.0)),
@@ -160,6 +165,8 @@ struct Thing {
     /// For an upright box: its footprint and the height of its bottom (a foothold test is then
     /// a point test against the footprint grown by the turned sole: [`foot_cspace`]).
     prism: Option<(Vec<V2>, f64)>,
+    /// A surface's edge (not an obstacle to the 2-D pre-planner).
+    edge: bool,
 }
 
 /// The world: the map, the surfaces, the obstacles (with the surfaces' edges).
@@ -223,6 +230,7 @@ impl World {
             };
             things.push(solid);
         }
+        let obstacles = things.len();
         let mut surfaces = Vec::new();
         for s in &scene.surface {
             let poly = s.polygon();
@@ -238,7 +246,9 @@ impl World {
         }
         let things: Vec<Thing> = things
             .into_iter()
-            .map(|solid| Thing {
+            .enumerate()
+            .map(|(k, solid)| Thing {
+                edge: k >= obstacles,
                 aabb: solid.aabb(),
                 top: solid.top(),
                 prism: match solid {
@@ -498,7 +508,7 @@ struct Problem<'a> {
     goal: V2,
     goal_yaw: f64,
     steps: Vec<(f64, f64, f64)>,
-    field: Option<(Grid, Vec<f64>)>,
+    field: Option<(Grid, Vec<f64>, Option<Vec<f64>>)>,
 }
 
 impl Problem<'_> {
@@ -507,7 +517,7 @@ impl Problem<'_> {
         let dth = self.s.w_theta * wrap(f.yaw - self.goal_yaw);
         let e = (m.dist(self.goal).powi(2) + dth * dth).sqrt();
         match &self.field {
-            Some((g, d)) if self.s.couple_heuristic => match g.cell(m) {
+            Some((g, d, _)) if self.s.couple_heuristic => match g.cell(m) {
                 Some((i, j)) if d[j * g.nx + i].is_finite() => {
                     let way = d[j * g.nx + i] / 1.02 - 1.5 * g.res;
                     e.max((way.max(0.0).powi(2) + dth * dth).sqrt())
@@ -524,7 +534,7 @@ impl Problem<'_> {
         if !self.s.couple_heading {
             return d;
         }
-        let Some((g, dist)) = &self.field else {
+        let Some((g, dist, _)) = &self.field else {
             return d;
         };
         let m = mid(f, self.s.robot.width);
@@ -550,6 +560,13 @@ impl Problem<'_> {
             }
             stats.generated += 1;
             let mut f = place(&n.stance, (lx, ly, phi), r.width);
+            if let (Some(dmax), Some((g, _, Some(c)))) = (s.corridor, &self.field) {
+                if g.cell(mid(&f, r.width))
+                    .is_none_or(|(i, j)| c[j * g.nx + i] > dmax)
+                {
+                    continue;
+                }
+            }
             let Some(z) = self.world.foothold(&f, r, stats) else {
                 continue;
             };
@@ -647,9 +664,15 @@ pub fn plan_from(
         );
     }
     // The 2-D pre-planner: a distance field over the tall obstacles, grown by the margin.
-    let field = (s.couple_heuristic || s.couple_heading).then(|| {
+    let field = (s.couple_heuristic || s.couple_heading || s.corridor.is_some()).then(|| {
         let mut g = Grid::flat(world.map.0, world.map.1, 0.05);
-        let tall: Vec<&Thing> = world.things.iter().filter(|t| t.top > r.h_max).collect();
+        // The reduced map: the obstacles too tall to step over (surfaces' edges are not
+        // obstacles here).
+        let tall: Vec<&Thing> = world
+            .things
+            .iter()
+            .filter(|t| !t.edge && t.top - t.aabb.mins.z.max(0.0) > r.h_max)
+            .collect();
         let grow = s.margin;
         g.paint(
             |p| {
@@ -664,7 +687,12 @@ pub fn plan_from(
             |_| 1.0,
         );
         let d = g.distance_field(goal, |h| h == 0.0);
-        (g, d)
+        // Coupling 2: the distance from the way the robot's centre would take.
+        let corridor = s.corridor.map(|_| {
+            let way = g.way(&d, (stance.p + swing.p) * 0.5);
+            g.distance_from(&way, |_| true)
+        });
+        (g, d, corridor)
     });
     let pr = Problem {
         world,

@@ -84,6 +84,17 @@ fn b2_complex_with_85_and_34_suggestions() {
 }
 
 #[test]
+fn coupling_2_keeps_the_steps_in_the_corridor() {
+    // The stairs' edges are not obstacles to the pre-planner: with the corridor on, the way
+    // runs up the stairs and the plan follows it (it once found no way at all).
+    for name in ["lola-b3-stairs", "lola-b5-corridors"] {
+        let (p, w) = run_with(name, Mode::Improved, |s| s.corridor = Some(0.6));
+        assert_eq!(p.status, Status::Ok, "{name}: {}", p.detail);
+        valid(&p, &w);
+    }
+}
+
+#[test]
 fn b3_stairs_up_and_down() {
     let (p, w) = run_with("lola-b3-stairs", Mode::Improved, |_| {});
     assert_eq!(p.status, Status::Ok, "{}", p.detail);
