@@ -335,31 +335,13 @@ impl Grid {
     /// Down a distance field from `p`: the cell the steepest way reaches once the distance
     /// has dropped by `ahead` (or the goal's), if `p` is on the map and reaches the goal.
     pub fn descent(&self, field: &[f64], p: V2, ahead: f64) -> Option<V2> {
-        let (i, j) = self.cell(p)?;
-        let k0 = j * self.nx + i;
-        if !field[k0].is_finite() {
-            return None;
-        }
-        let mut k = k0;
-        while field[k0] - field[k] < ahead && field[k] > 0.0 {
-            let (ci, cj) = ((k % self.nx) as i64, (k / self.nx) as i64);
-            let mut next = (field[k], k);
-            for a in -2i64..=2 {
-                for b in -2i64..=2 {
-                    let (x, y) = (ci + a, cj + b);
-                    if x >= 0 && y >= 0 && (x as usize) < self.nx && (y as usize) < self.ny {
-                        let nk = y as usize * self.nx + x as usize;
-                        if field[nk] < next.0 {
-                            next = (field[nk], nk);
-                        }
-                    }
-                }
-            }
-            if next.1 == k {
-                break;
-            }
-            k = next.1;
-        }
+        let way = self.way(field, p, ahead);
+        let k0 = *way.first()?;
+        let k = way
+            .iter()
+            .copied()
+            .find(|&k| field[k0] - field[k] >= ahead)
+            .or(way.last().copied())?;
         (k != k0).then(|| self.centre(k % self.nx, k / self.nx))
     }
 
@@ -373,9 +355,10 @@ impl Grid {
         }
     }
 
-    /// The cells from `from` down a distance field to its zero, steepest first (16 moves);
-    /// empty when `from` is off the map or cannot reach it.
-    pub fn way(&self, field: &[f64], from: V2) -> Vec<usize> {
+    /// The cells from `from` down a distance field, steepest first (16 moves), to its zero or
+    /// until the distance has dropped by `drop`; empty when `from` is off the map or cannot
+    /// reach the zero.
+    pub fn way(&self, field: &[f64], from: V2, drop: f64) -> Vec<usize> {
         let Some((i, j)) = self.cell(from) else {
             return Vec::new();
         };
@@ -384,7 +367,8 @@ impl Grid {
             return Vec::new();
         }
         let mut out = vec![k];
-        while field[k] > 0.0 {
+        let top = field[k];
+        while field[k] > 0.0 && top - field[k] < drop {
             let (ci, cj) = ((k % self.nx) as i64, (k / self.nx) as i64);
             let mut next = (field[k], k);
             for a in -2i64..=2 {

@@ -689,7 +689,7 @@ pub fn plan_from(
         let d = g.distance_field(goal, |h| h == 0.0);
         // Coupling 2: the distance from the way the robot's centre would take.
         let corridor = s.corridor.map(|_| {
-            let way = g.way(&d, (stance.p + swing.p) * 0.5);
+            let way = g.way(&d, (stance.p + swing.p) * 0.5, f64::INFINITY);
             g.distance_from(&way, |_| true)
         });
         (g, d, corridor)
