@@ -3,9 +3,10 @@
 //!
 //! - faithful ([`Mode::Thesis`]): a tree search (no duplicate detection) capped at 2000
 //!   expansions, the adaptive action set (per subset, the feasible candidate of least cost of
-//!   transport; the full set within 0.6 m of the goal), the thesis's heuristic (Eq. 14). The
-//!   local-minimum penalty (Eq. 15) is not built: without it the thesis's planner fails at the
-//!   cap behind a wall, and so does this one.
+//!   transport; the full set within 0.6 m of the goal), the thesis's heuristic (Eq. 14), and
+//!   optionally its local-minimum penalty (Eq. 15, [`Heuristic::EuclidAnglePenalty`], its
+//!   geometry as the notes infer it). Without the penalty the thesis's planner fails at the cap
+//!   behind a wall, and so does this one; with this penalty it still does.
 //! - improved ([`Mode::Improved`]): A* with duplicate detection on a lattice (0.05 m, 5°,
 //!   side) and a closed set, the same actions, an admissible energy bound
 //!   ([`kaist::h_improved`]) also taken along the 2-D way around tall cells
@@ -50,6 +51,9 @@ pub enum Heuristic {
     Euclid,
     /// Eq. 12 plus the turn, F·Δθ²/N (Eq. 14): the thesis's.
     EuclidAngle,
+    /// Eq. 14, and the thesis's local-minimum penalty (Eq. 15) where a tall obstacle lies
+    /// ahead: see [`Problem::penalised`]. Inadmissible by design.
+    EuclidAnglePenalty,
     /// The admissible energy bound ([`kaist::h_improved`]).
     EnergyBound,
     /// The energy bound, also taken over the length of the 2-D way around tall cells (R-S3).
@@ -324,6 +328,9 @@ impl Problem<'_> {
                 Heuristic::Zero => 0.0,
                 Heuristic::Euclid => self.alpha * d,
                 Heuristic::EuclidAngle => kaist::h_thesis(p, self.alpha, d, n.heading(), bearing),
+                Heuristic::EuclidAnglePenalty => self
+                    .penalised(n)
+                    .unwrap_or_else(|| kaist::h_thesis(p, self.alpha, d, n.heading(), bearing)),
                 Heuristic::EnergyBound => kaist::h_improved(p, ds, bs, yaw, d, tol),
                 Heuristic::Dijkstra2d => {
                     let e = kaist::h_improved(p, ds, bs, yaw, d, tol);
@@ -348,6 +355,61 @@ impl Problem<'_> {
         let d = f[j * g.nx + i];
         d.is_finite()
             .then(|| (d / 1.02 - 1.5 * g.res - n.stance.p.dist(n.other.p) / 2.0).max(0.0))
+    }
+
+    /// The thesis's local-minimum penalty (§2.4, Eq. 15), over m·g, when a tall obstacle lies
+    /// ahead of `n`: α·(d₂ + d₃) + F·θ₂²/N₂ + F·θ₃²/N₃, the way to the goal through a point
+    /// beside the obstacle. The thesis's figures of it are lost; as the notes infer it: the
+    /// look-ahead follows the heading for [`PENALTY_LOOK`] with the body's width (0.5 m); the
+    /// detour point is the nearer side of the obstacle, half the body's width past its edge;
+    /// a step on the spot pays half (the thesis gives those steps a smaller penalty). `None`
+    /// when nothing is ahead.
+    fn penalised(&self, n: &Node) -> Option<f64> {
+        let p = &self.s.cost;
+        let g = &self.world.grid;
+        let c = n.centre();
+        let dir = V2::polar(n.heading());
+        let side = v2(-dir.y, dir.x);
+        let limit = n.stance.z + self.s.feasibility.body_height;
+        let tall = |q: V2| g.height(q) > limit;
+        let half = 0.25;
+        let step = g.res;
+        // The first tall cell ahead within the body's width.
+        let hit = (1..=(PENALTY_LOOK / step) as usize).find_map(|k| {
+            let t = k as f64 * step;
+            let at = c + dir * t;
+            [-half, 0.0, half]
+                .iter()
+                .any(|&o| tall(at + side * o))
+                .then_some(t)
+        })?;
+        if c.dist(self.goal) <= hit {
+            return None;
+        }
+        // The obstacle's extent across the heading at the hit, each way.
+        let at = c + dir * (hit + step);
+        let reach = |sgn: f64| {
+            (0..=(3.0 / step) as usize)
+                .map(|k| k as f64 * step)
+                .find(|&o| !tall(at + side * (sgn * o)))
+        };
+        let detour = [1.0, -1.0]
+            .iter()
+            .filter_map(|&sgn| reach(sgn).map(|o| at + side * (sgn * (o + half))))
+            .min_by(|a, b| {
+                (c.dist(*a) + a.dist(self.goal)).total_cmp(&(c.dist(*b) + b.dist(self.goal)))
+            })?;
+        let turn = |from: f64, to: f64| {
+            let t = wrap(to - from).abs();
+            p.f * t * t / (t / p.yaw_max).ceil().max(1.0)
+        };
+        let (b2, b3) = ((detour - c).angle(), (self.goal - detour).angle());
+        let h = self.alpha * (c.dist(detour) + detour.dist(self.goal))
+            + turn(n.heading(), b2)
+            + turn(b2, b3);
+        let on_the_spot = n.stance.p.dist(n.other.p) < p.w_max + 1e-9
+            && (n.stance.p - n.other.p).dot(V2::polar(n.stance.yaw)).abs() < 1e-9;
+        Some(if on_the_spot { h / 2.0 } else { h })
     }
 
     /// The successors of `n`.
@@ -391,6 +453,9 @@ impl Problem<'_> {
         out
     }
 }
+
+/// How far ahead the local-minimum penalty looks, m (the thesis does not say).
+pub const PENALTY_LOOK: f64 = 1.0;
 
 /// How one pass ended.
 enum Pass {
