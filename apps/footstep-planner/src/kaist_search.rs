@@ -22,14 +22,13 @@
 //! refused when a cell of either swing ellipse (stance to new foot, grown by the sway; old to
 //! new foot position) is more than `body_height` above the stance foot.
 
-use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
 use std::time::{Duration, Instant};
 
 use crate::geom::{v2, wrap, V2};
 use crate::grid::{Grid, GridError};
 use crate::kaist::{self, Action, CostParams, Subset};
-use crate::plan::{Foot, Plan, Stats, Status};
+use crate::plan::{Entry, Foot, Plan, Stats, Status};
 use crate::scene::Scene;
 use crate::steps::FOOT;
 
@@ -244,31 +243,6 @@ pub fn apply(stance: &Foot, a: &Action) -> Foot {
         z: stance.z,
         yaw: wrap(stance.yaw + dt),
         left: !stance.left,
-    }
-}
-
-#[derive(PartialEq)]
-struct Entry {
-    f: f64,
-    h: f64,
-    order: u64,
-    node: usize,
-}
-
-impl Eq for Entry {}
-
-impl Ord for Entry {
-    fn cmp(&self, o: &Self) -> Ordering {
-        // Least f first, then least h, then first inserted: deterministic.
-        o.f.total_cmp(&self.f)
-            .then(o.h.total_cmp(&self.h))
-            .then(o.order.cmp(&self.order))
-    }
-}
-
-impl PartialOrd for Entry {
-    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-        Some(self.cmp(o))
     }
 }
 

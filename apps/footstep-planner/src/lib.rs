@@ -14,6 +14,7 @@ pub mod lola;
 pub mod node;
 pub mod plan;
 pub mod planner;
+pub mod preplan;
 pub mod scene;
 pub mod ssv;
 pub mod steps;

@@ -17,7 +17,9 @@
 //!   of the step from the desired one (W = diag(1, 1, 0.2 m/rad)); heuristic: the weighted
 //!   distance of the mid-stance point and heading from the goal. Consistent for k ≥ 1.
 //! - faithful ([`Mode::Thesis`]): the thesis's search tree (no duplicate detection), its
-//!   heuristic, no pre-planner coupling; at the budget it falls back to stepping in place.
+//!   heuristic, and its 2-D pre-planner ([`crate::preplan`]: seeds shifted to free space, one
+//!   way per homotopy class, the cheapest by Eq. 4.17) coupled as heuristic and heading
+//!   (couplings 1 and 3); at the budget it falls back to stepping in place.
 //! - improved ([`Mode::Improved`]): a scouting pass on a coarse lattice (0.2 m, 15°, weight
 //!   2), then duplicate detection on a lattice (0.05 m, 5°, side), the
 //!   2-D pre-planner (a distance field over the tall obstacles, grown by a margin) coupled as
@@ -33,9 +35,21 @@ use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 
 use crate::geom::{convex_overlap, foot_cspace, rectangle, v2, wrap, V2};
 use crate::grid::Grid;
-use crate::plan::{Foot, Least, Plan, Stats, Status};
+use crate::plan::{Entry, Foot, Plan, Stats, Status};
+use crate::preplan::{self, preplan, Reduced, Way};
 use crate::scene::{Obstacle, Scene};
 use crate::ssv::{overlaps, Solid, P3};
+
+/// The 2-D pre-planner whose way the couplings follow.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PrePlanner {
+    /// The thesis's: seeds shifted to free space, one way per homotopy class, the cheapest by
+    /// Eq. 4.17 ([`crate::preplan`]).
+    Thesis,
+    /// A distance field over the tall obstacles: the shortest way, as a heuristic that is a
+    /// lower bound of its length from anywhere.
+    Field,
+}
 
 /// The robot: foot, shank and step limits.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -111,8 +125,11 @@ pub struct Settings {
     pub budget: Duration,
     /// Expansion cap.
     pub max_expansions: u64,
-    /// Margin of the pre-planner's point robot around tall obstacles, m.
+    /// Margin of the distance field's point robot around tall obstacles, m (the thesis's
+    /// pre-planner keeps its own, 0.25 m).
     pub margin: f64,
+    /// Which 2-D pre-planner the couplings follow.
+    pub preplanner: PrePlanner,
     /// Coupling 1: the pre-planner's way as heuristic.
     pub couple_heuristic: bool,
     /// Coupling 3: the pre-planner's way as desired heading.
@@ -146,8 +163,13 @@ impl Settings {
             budget: Duration::from_millis(400),
             max_expansions: 1_000_000,
             margin: 0.1,
-            couple_heuristic: improved,
-            couple_heading: improved,
+            preplanner: if improved {
+                PrePlanner::Field
+            } else {
+                PrePlanner::Thesis
+            },
+            couple_heuristic: true,
+            couple_heading: true,
             corridor: None,
             weights: vec![1.5, 1.2, 1.0],
             lattice: (0.05, 5.0),
@@ -267,6 +289,20 @@ impl World {
             surfaces,
             things,
         }
+    }
+
+    /// The obstacles as the 2-D pre-planner sees them: too tall to step over (over `h_max`
+    /// above their base), and small; surfaces' edges are neither.
+    pub fn reduced(&self, h_max: f64) -> (Vec<Solid>, Vec<Solid>) {
+        let (mut tall, mut small) = (Vec::new(), Vec::new());
+        for t in self.things.iter().filter(|t| !t.edge) {
+            if t.top - t.aabb.mins.z.max(0.0) > h_max {
+                tall.push(t.solid);
+            } else {
+                small.push(t.solid);
+            }
+        }
+        (tall, small)
     }
 
     fn in_map(&self, p: V2) -> bool {
@@ -509,6 +545,7 @@ struct Problem<'a> {
     goal_yaw: f64,
     steps: Vec<(f64, f64, f64)>,
     field: Option<(Grid, Vec<f64>, Option<Vec<f64>>)>,
+    way: Option<Way>,
 }
 
 impl Problem<'_> {
@@ -516,6 +553,11 @@ impl Problem<'_> {
         let m = mid(f, self.s.robot.width);
         let dth = self.s.w_theta * wrap(f.yaw - self.goal_yaw);
         let e = (m.dist(self.goal).powi(2) + dth * dth).sqrt();
+        if let (Some(w), true) = (&self.way, self.s.couple_heuristic) {
+            // Coupling 1 (Eq. 4.18, w⊥ = 0): the way's length from the projection on.
+            let (l_g, _, _) = w.project(m);
+            return (l_g * l_g + dth * dth).sqrt();
+        }
         match &self.field {
             Some((g, d, _)) if self.s.couple_heuristic => match g.cell(m) {
                 Some((i, j)) if d[j * g.nx + i].is_finite() => {
@@ -534,13 +576,18 @@ impl Problem<'_> {
         if !self.s.couple_heading {
             return d;
         }
+        let m = mid(f, self.s.robot.width);
+        if (self.field.is_some() || self.way.is_some()) && m.dist(self.goal) < 0.5 {
+            return (wrap(self.goal_yaw - f.yaw)).clamp(-0.2, 0.2);
+        }
+        if let Some(w) = &self.way {
+            // The way's tangent at the projection.
+            let (_, tangent, _) = w.project(m);
+            return wrap(tangent - f.yaw).clamp(-0.2, 0.2);
+        }
         let Some((g, dist, _)) = &self.field else {
             return d;
         };
-        let m = mid(f, self.s.robot.width);
-        if m.dist(self.goal) < 0.5 {
-            return (wrap(self.goal_yaw - f.yaw)).clamp(-0.2, 0.2);
-        }
         match g.descent(dist, m, 0.6) {
             Some(to) => wrap((to - m).angle() - f.yaw).clamp(-0.2, 0.2),
             None => d,
@@ -664,7 +711,26 @@ pub fn plan_from(
         );
     }
     // The 2-D pre-planner: a distance field over the tall obstacles, grown by the margin.
-    let field = (s.couple_heuristic || s.couple_heading || s.corridor.is_some()).then(|| {
+    let coupled = s.couple_heuristic || s.couple_heading || s.corridor.is_some();
+    // The thesis's pre-planner: its cheapest way by Eq. 4.17.
+    let way = (coupled && s.preplanner == PrePlanner::Thesis)
+        .then(|| {
+            let (tall, small) = world.reduced(r.h_max);
+            let reduced = Reduced {
+                tall: &tall,
+                small: &small,
+                map: world.map,
+            };
+            let params = preplan::Params {
+                l_d: s.desired.0,
+                ..Default::default()
+            };
+            preplan(mid(&stance, r.width), goal, &reduced, &params)
+                .into_iter()
+                .next()
+        })
+        .flatten();
+    let field = (coupled && s.preplanner == PrePlanner::Field).then(|| {
         let mut g = Grid::flat(world.map.0, world.map.1, 0.05);
         // The reduced map: the obstacles too tall to step over (surfaces' edges are not
         // obstacles here).
@@ -701,6 +767,7 @@ pub fn plan_from(
         goal_yaw,
         steps: suggestions(s.reduced),
         field,
+        way,
     };
     stats.prepare = t0.elapsed();
     let t1 = Instant::now();
@@ -838,7 +905,14 @@ fn pass(
 ) -> Pass {
     let (s, r, goal, goal_yaw) = (pr.s, &pr.s.robot, pr.goal, pr.goal_yaw);
     let mut nodes = vec![root];
-    let mut open = BinaryHeap::from([Least(weight * pr.h(&root.stance), 0)]);
+    let h0 = pr.h(&root.stance);
+    let mut order = 0u64;
+    let mut open = BinaryHeap::from([Entry {
+        f: weight * h0,
+        h: h0,
+        order,
+        node: 0,
+    }]);
     let key = |f: &Foot| {
         let m = mid(f, r.width);
         (
@@ -855,7 +929,7 @@ fn pass(
             *best = (best_here.0, nodes, best_here.1);
         }
     };
-    while let Some(Least(_, i)) = open.pop() {
+    while let Some(Entry { node: i, .. }) = open.pop() {
         let n = nodes[i];
         if lattice && best_g.get(&key(&n.stance)).is_some_and(|&b| n.g > b) {
             continue;
@@ -900,7 +974,13 @@ fn pass(
                 continue;
             }
             nodes.push(child);
-            open.push(Least(child.g + weight * hc, nodes.len() - 1));
+            order += 1;
+            open.push(Entry {
+                f: child.g + weight * hc,
+                h: hc,
+                order,
+                node: nodes.len() - 1,
+            });
         }
     }
     finish(nodes, best_here, best);

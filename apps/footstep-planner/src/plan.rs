@@ -140,3 +140,33 @@ impl PartialOrd for Least {
         Some(self.cmp(o))
     }
 }
+
+/// An entry of an A* open list (a `BinaryHeap`): least `f` first, then least `h` (the deeper
+/// of two equal ones), then the first inserted: deterministic.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Entry {
+    /// g + w·h.
+    pub f: f64,
+    /// h.
+    pub h: f64,
+    /// Insertion order.
+    pub order: u64,
+    /// The node.
+    pub node: usize,
+}
+
+impl Eq for Entry {}
+
+impl Ord for Entry {
+    fn cmp(&self, o: &Self) -> Ordering {
+        o.f.total_cmp(&self.f)
+            .then(o.h.total_cmp(&self.h))
+            .then(o.order.cmp(&self.order))
+    }
+}
+
+impl PartialOrd for Entry {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}

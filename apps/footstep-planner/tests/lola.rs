@@ -111,8 +111,9 @@ fn b4_wall_ahead_needs_the_couplings() {
     let (p, w) = run_with("lola-b4-wall", Mode::Improved, |_| {});
     assert_eq!(p.status, Status::Ok, "{}", p.detail);
     valid(&p, &w);
-    // The thesis's search, uncoupled and without duplicate detection, does not get round
-    // within 1000 expansions (the improved one needs a few hundred): it steps in place.
+    // The thesis's search tree, without duplicate detection (coupled to its pre-planner),
+    // does not get round within 1000 expansions (the improved one needs a few hundred): it
+    // steps in place.
     let (t, _) = run_with("lola-b4-wall", Mode::Thesis, |s| s.max_expansions = 1_000);
     assert_eq!(t.status, Status::Partial);
     assert!(t.detail.ends_with("stepping in place"), "{}", t.detail);
@@ -311,4 +312,35 @@ fn start_and_goal_checks() {
     let p = plan(v2(0.0, 0.0), 0.0, v2(5.0, 0.0), 0.0, &w, Mode::Improved, &s);
     assert_eq!(p.status, Status::GoalOutsideMap);
     let _ = V2::default();
+}
+
+#[test]
+fn the_thesis_pre_planner_finds_both_corridors_and_prefers_the_free_one() {
+    use stride_footstep_planner::preplan::{preplan, Params, Reduced};
+    let sc = scene("lola-b5-corridors");
+    let w = World::of(&sc);
+    let (tall, small) = w.reduced(Settings::new(Mode::Thesis).robot.h_max);
+    let reduced = Reduced {
+        tall: &tall,
+        small: &small,
+        map: w.map,
+    };
+    let ways = preplan(sc.start.p(), sc.goal.p(), &reduced, &Params::default());
+    assert!(ways.len() >= 2, "{} ways", ways.len());
+    let (left, right): (Vec<_>, Vec<_>) = ways
+        .iter()
+        .partition(|w| w.points.iter().any(|p| p.y > 0.98));
+    let (left, right) = (left[0], right[0]);
+    // The right corridor is the shorter, its bars make it the dearer by Eq. 4.17.
+    assert!(
+        right.length < left.length,
+        "{} {}",
+        right.length,
+        left.length
+    );
+    assert!(right.cost > left.cost, "{} {}", right.cost, left.cost);
+    assert_eq!(ways[0].class, left.class);
+    // Lengths near the scene's (the notes' 5.59 m and 6.15 m for a 0.25 m margin).
+    assert!((right.length - 5.59).abs() < 0.1, "{}", right.length);
+    assert!((left.length - 6.15).abs() < 0.1, "{}", left.length);
 }
