@@ -50,7 +50,8 @@ impl V2 {
 
     /// Length.
     pub fn norm(self) -> f64 {
-        self.x.hypot(self.y)
+        // Not `hypot`: twice as fast, and these lengths are far from overflowing.
+        (self.x * self.x + self.y * self.y).sqrt()
     }
 
     /// Distance to `o`.

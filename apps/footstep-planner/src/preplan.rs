@@ -14,7 +14,7 @@
 //!    small obstacles within d_relevant of the way, d_free,i the free gap after obstacle i.
 
 use crate::geom::{v2, V2};
-use crate::ssv::Solid;
+use crate::ssv::{Footprint, Solid};
 
 /// The pre-planner's parameters (the thesis gives none; the notes' defaults).
 #[derive(Debug, Clone, PartialEq)]
@@ -113,7 +113,13 @@ pub struct Reduced<'a> {
     pub map: ([f64; 2], [f64; 2]),
 }
 
-impl Reduced<'_> {
+/// The tall obstacles' footprints and the map, as the shifting and the checks ask them.
+struct Flat {
+    tall: Vec<Footprint>,
+    map: ([f64; 2], [f64; 2]),
+}
+
+impl Flat {
     /// The clearance of `p`: the least distance to a tall obstacle's footprint less the margin
     /// (negative inside), and to the map's border.
     fn clearance(&self, p: V2, margin: f64) -> f64 {
@@ -123,19 +129,19 @@ impl Reduced<'_> {
             .min(self.map.1[1] - p.y);
         self.tall
             .iter()
-            .map(|t| t.footprint_distance(p) - margin)
+            .map(|t| t.distance(p) - margin)
             .fold(border, f64::min)
     }
 
     fn free(&self, a: V2, b: V2, margin: f64) -> bool {
-        let n = (a.dist(b) / 0.02).ceil().max(1.0) as usize;
+        let n = (a.dist(b) / 0.03).ceil().max(1.0) as usize;
         (0..=n).all(|i| self.clearance(a + (b - a) * (i as f64 / n as f64), margin) > 0.0)
     }
 
     fn potential(&self, p: V2, margin: f64) -> f64 {
         self.tall
             .iter()
-            .map(|t| (t.footprint_distance(p) - margin).max(1e-6).ln())
+            .map(|t| (t.distance(p) - margin).max(1e-6).ln())
             .sum()
     }
 }
@@ -156,7 +162,11 @@ fn winding(points: &[V2], o: V2) -> i32 {
 }
 
 /// The ways from `start` to `goal`, cheapest estimate first (empty when none is free).
-pub fn preplan(start: V2, goal: V2, world: &Reduced, p: &Params) -> Vec<Way> {
+pub fn preplan(start: V2, goal: V2, reduced: &Reduced, p: &Params) -> Vec<Way> {
+    let world = &Flat {
+        tall: reduced.tall.iter().map(Solid::footprint).collect(),
+        map: reduced.map,
+    };
     let d = goal - start;
     let len = d.norm().max(1e-9);
     let n = v2(-d.y / len, d.x / len);
@@ -171,8 +181,9 @@ pub fn preplan(start: V2, goal: V2, world: &Reduced, p: &Params) -> Vec<Way> {
             })
             .collect();
         let mut ok = false;
-        for _ in 0..p.iterations {
-            if pts.windows(2).all(|w| world.free(w[0], w[1], m)) {
+        for it in 0..p.iterations {
+            // Freedom costs more to check than a shift: every fifth iteration.
+            if it % 5 == 0 && pts.windows(2).all(|w| world.free(w[0], w[1], m)) {
                 ok = true;
                 break;
             }
@@ -206,7 +217,7 @@ pub fn preplan(start: V2, goal: V2, world: &Reduced, p: &Params) -> Vec<Way> {
         let pts = elastic_band(pts, world, m);
         let mut closed = pts.clone();
         closed.push(start);
-        let class: Vec<i32> = world
+        let class: Vec<i32> = reduced
             .tall
             .iter()
             .map(|t| {
@@ -237,7 +248,7 @@ pub fn preplan(start: V2, goal: V2, world: &Reduced, p: &Params) -> Vec<Way> {
         }
     }
     for w in &mut found {
-        w.cost = estimate(w, world, p);
+        w.cost = estimate(w, reduced, p);
     }
     found.sort_by(|a, b| a.cost.total_cmp(&b.cost));
     found
@@ -245,8 +256,8 @@ pub fn preplan(start: V2, goal: V2, world: &Reduced, p: &Params) -> Vec<Way> {
 
 /// Shortens a free way, keeping it free: each point moves halfway towards its neighbours'
 /// midpoint while that keeps its segments free; then points in a straight line go.
-fn elastic_band(mut pts: Vec<V2>, world: &Reduced, m: f64) -> Vec<V2> {
-    for _ in 0..100 {
+fn elastic_band(mut pts: Vec<V2>, world: &Flat, m: f64) -> Vec<V2> {
+    for _ in 0..40 {
         let mut moved = false;
         for k in 1..pts.len() - 1 {
             let mid = (pts[k - 1] + pts[k + 1]) * 0.5;
@@ -280,14 +291,15 @@ fn estimate(w: &Way, world: &Reduced, p: &Params) -> f64 {
     // nearest point).
     let mut near: Vec<(f64, f64)> = Vec::new();
     for o in world.small {
+        let fp = o.footprint();
         let mut best = (f64::INFINITY, 0.0);
         let mut walked = 0.0;
         for s in w.points.windows(2) {
             let seg = s[0].dist(s[1]);
-            let n = (seg / 0.02).ceil().max(1.0) as usize;
+            let n = (seg / 0.05).ceil().max(1.0) as usize;
             for i in 0..=n {
                 let t = i as f64 / n as f64;
-                let d = o.footprint_distance(s[0] + (s[1] - s[0]) * t);
+                let d = fp.distance(s[0] + (s[1] - s[0]) * t);
                 if d < best.0 {
                     best = (d, walked + t * seg);
                 }

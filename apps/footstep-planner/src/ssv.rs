@@ -60,6 +60,53 @@ pub enum Solid {
     },
 }
 
+/// A solid's shadow on the ground.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Footprint {
+    /// An SSV's core, flattened, and its radius.
+    Core(Core, f64),
+    /// A turned rectangle: centre, the cosine and sine of its heading, half extents.
+    Rect {
+        /// Centre.
+        c: crate::geom::V2,
+        /// cos(yaw).
+        cos: f64,
+        /// sin(yaw).
+        sin: f64,
+        /// Half length and half width.
+        half: (f64, f64),
+    },
+    /// A circle: centre and radius.
+    Circle(crate::geom::V2, f64),
+}
+
+impl Footprint {
+    /// The signed distance from `p`, m (negative inside).
+    pub fn distance(&self, p: crate::geom::V2) -> f64 {
+        match *self {
+            Footprint::Core(core, radius) => {
+                let at = P3::new(p.x, p.y, 0.0);
+                let (x, y) = closest_cores(&Core::Point(at), &core);
+                (x - y).norm() - radius
+            }
+            Footprint::Rect { c, cos, sin, half } => {
+                let q = p - c;
+                let (lx, ly) = (
+                    (cos * q.x + sin * q.y).abs() - half.0,
+                    (-sin * q.x + cos * q.y).abs() - half.1,
+                );
+                if lx > 0.0 || ly > 0.0 {
+                    let (x, y) = (lx.max(0.0), ly.max(0.0));
+                    (x * x + y * y).sqrt()
+                } else {
+                    lx.max(ly)
+                }
+            }
+            Footprint::Circle(c, r) => p.dist(c) - r,
+        }
+    }
+}
+
 /// How near two solids are.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Proximity {
@@ -160,32 +207,33 @@ impl Solid {
 
     /// The signed distance from `p` to its footprint (its shadow on the ground), m.
     pub fn footprint_distance(&self, p: crate::geom::V2) -> f64 {
+        self.footprint().distance(p)
+    }
+
+    /// Its footprint (its shadow on the ground), ready for many distance queries.
+    pub fn footprint(&self) -> Footprint {
         let flat = |q: P3| P3::new(q.x, q.y, 0.0);
-        let at = P3::new(p.x, p.y, 0.0);
         match *self {
-            Solid::Ssv { core, radius } => {
-                let c = match core {
+            Solid::Ssv { core, radius } => Footprint::Core(
+                match core {
                     Core::Point(a) => Core::Point(flat(a)),
                     Core::Segment(a, b) => Core::Segment(flat(a), flat(b)),
                     Core::Triangle(a, b, c) => Core::Triangle(flat(a), flat(b), flat(c)),
-                };
-                let (x, y) = closest_cores(&Core::Point(at), &c);
-                (x - y).norm() - radius
-            }
+                },
+                radius,
+            ),
             Solid::Box { centre, yaw, half } => {
-                let q = at - flat(centre);
-                let (s, c) = yaw.sin_cos();
-                let (lx, ly) = (
-                    (c * q.x + s * q.y).abs() - half.x,
-                    (-s * q.x + c * q.y).abs() - half.y,
-                );
-                if lx > 0.0 || ly > 0.0 {
-                    lx.max(0.0).hypot(ly.max(0.0))
-                } else {
-                    lx.max(ly)
+                let (sin, cos) = yaw.sin_cos();
+                Footprint::Rect {
+                    c: crate::geom::v2(centre.x, centre.y),
+                    cos,
+                    sin,
+                    half: (half.x, half.y),
                 }
             }
-            Solid::Cylinder { base, radius, .. } => (at - flat(base)).norm() - radius,
+            Solid::Cylinder { base, radius, .. } => {
+                Footprint::Circle(crate::geom::v2(base.x, base.y), radius)
+            }
         }
     }
 

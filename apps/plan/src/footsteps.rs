@@ -130,8 +130,8 @@ fn ms(us: f64) -> String {
 
 /// The side-by-side table, and the bars' verdicts.
 pub fn print_table(rows: &mut [Row], repeats: usize, budget: Duration) {
-    println!("| scene | thesis: status | cost | steps | expansions | p50 / p99 | improved: status | cost | / thesis | steps | expansions to first plan | / thesis | first plan p50 / p99 | bound at the budget | expansions | p50 / p99 | the thesis reports |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| scene | thesis: status | cost | steps | expansions | preparation | p50 / p99 | improved: status | cost | / thesis | steps | expansions to first plan | / thesis | first plan p50 / p99 | bound at the budget | expansions | p50 / p99 | the thesis reports |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let (mut worse, mut over_half, mut slow_p50, mut slow_p99, mut fails) = (0, 0, 0, 0, 0);
     let mut worst_first = (0.0f64, 0.0f64);
     for pair in rows.chunks_mut(2) {
@@ -179,12 +179,13 @@ pub fn print_table(rows: &mut [Row], repeats: usize, budget: Duration) {
             }
         };
         println!(
-            "| {} | {} | {} | {} | {} | {} / {} | {} | {} | {} | {} | {} | {} | {} / {} | {} | {} | {} / {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} / {} | {} | {} | {} | {} | {} | {} | {} / {} | {} | {} | {} / {} | {} |",
             t.scene,
             t.plan.status.name(),
             cost(&t.plan),
             t.plan.steps.len().saturating_sub(2),
             t.plan.stats.expansions,
+            ms(t.plan.stats.prepare.as_secs_f64() * 1e6),
             ms(pct(&mut t.total, 50.0)),
             ms(pct(&mut t.total, 99.0)),
             i.plan.status.name(),
