@@ -347,12 +347,7 @@ fn start_and_goal_checks() {
 /// No step lands on the person, every replan answers, and the robot arrives.
 #[test]
 fn b7_closed_loop_with_a_person_stepping_in() {
-    let mut scene = Scene::parse(
-        "name = \"kaist-b7\"\nstart = { x = 0.0, y = 0.0 }\ngoal = { x = 6.0, y = 0.0 }\n\
-         [map]\nx = [-1.0, 7.0]\ny = [-1.5, 1.5]\n",
-        &std::env::temp_dir(),
-    )
-    .unwrap();
+    let mut scene = scene("kaist-b7");
     let mut world = World::of(&scene).unwrap();
     let mut st = Settings::new(Mode::Improved, CostParams::kaist_sim());
     st.budget = Duration::from_secs(600);
