@@ -189,3 +189,40 @@ fn replans_once_when_the_world_blocks_the_plan() {
     let (st, _) = r.node.interrupt();
     assert!(st.success());
 }
+
+#[test]
+fn ask_prints_the_running_planners_answer() {
+    if !in_sandbox() {
+        return;
+    }
+    let r = start(7783, Some("../config/scenes/kaist/kaist-b6.toml"));
+    let url = udpm_url(7783);
+    for planner in ["archie", "kaist", "lola"] {
+        let out = Command::new(bin("stride-footstep-planner"))
+            .args(["--lcm-url", &url, "--log-level", "warn", "--ask", "4,0"])
+            .args(["--planner", planner])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{planner}: {text} {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        // A plan (0), or its best part when the budget ends first (1).
+        assert!(
+            (text.contains("status 0") || text.contains("status 1")) && text.contains("step "),
+            "{planner}: {text}"
+        );
+    }
+    // Nobody to answer: a clear error.
+    let out = Command::new(bin("stride-footstep-planner"))
+        .args(["--lcm-url", &url, "--ask", "1,0", "--wait-s", "0.5"])
+        .args(["--plan-channel", "NOBODY"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("is stride-footstep-planner running?"));
+    let (st, _) = r.node.interrupt();
+    assert!(st.success());
+}

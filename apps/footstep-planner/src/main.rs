@@ -5,9 +5,14 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::Parser;
-use stride_footstep_planner::node::{obstacles_of, plan_request, Reason, Replanner, World};
+use stride_footstep_planner::geom::v2;
+use stride_footstep_planner::node::{
+    obstacles_of, plan_request, request_at, Reason, Replanner, World,
+};
 use stride_footstep_planner::scene::Scene;
-use stride_lcmtypes::stride::{FootstepPlanRequestT, FootstepPlanT, NodeStatusT, ObstacleListT};
+use stride_lcmtypes::stride::{
+    FootT, FootstepPlanRequestT, FootstepPlanT, NodeStatusT, ObstacleListT,
+};
 use stride_node::{Node, NodeArgs, Stamper, Ticker};
 
 /// Plan footsteps on request.
@@ -39,6 +44,115 @@ struct Cli {
     /// Channel of the mapper's obstacles.
     #[arg(long, default_value = "OBSTACLES")]
     obstacle_channel: String,
+    /// Instead of planning, ask the planner running on the bus once: the goal as X,Y (metres)
+    /// for a robot standing at the origin facing +x; prints the plan and exits (0 for a plan,
+    /// 1 otherwise).
+    #[arg(long, value_name = "X,Y", value_parser = parse_goal)]
+    ask: Option<(f64, f64)>,
+    /// With --ask: which planner.
+    #[arg(long, value_enum, default_value = "archie")]
+    planner: Which,
+    /// With --ask: the thesis's planner instead of the improved one.
+    #[arg(long)]
+    faithful: bool,
+    /// With --ask: the planner's budget, ms (0: its own).
+    #[arg(long, default_value_t = 0)]
+    budget_ms: u64,
+    /// With --ask: how long to wait for the answer, s.
+    #[arg(long, default_value_t = 5.0)]
+    wait_s: f64,
+}
+
+/// The planners, as --planner names them.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Which {
+    /// Archie's path planner (seed 000).
+    Archie,
+    /// The KAIST energy A* (seed 004).
+    Kaist,
+    /// LOLA's footstep A* (seed 002).
+    Lola,
+}
+
+fn parse_goal(s: &str) -> Result<(f64, f64), String> {
+    let (x, y) = s
+        .split_once(',')
+        .ok_or_else(|| format!("{s:?}: the goal is X,Y in metres"))?;
+    let num = |v: &str| v.trim().parse::<f64>().map_err(|e| format!("{v:?}: {e}"));
+    Ok((num(x)?, num(y)?))
+}
+
+/// --ask: one request, the answer printed.
+fn ask(cli: &Cli, goal: (f64, f64)) -> anyhow::Result<()> {
+    let node = Node::start("stride-footstep-ask", &cli.node)?;
+    let (_sub, plans) = node.queue::<FootstepPlanT>(&cli.plan_channel)?;
+    let id = std::process::id() as i64;
+    let mut req = request_at(id, 0, v2(0.0, 0.0), 0.0, v2(goal.0, goal.1));
+    req.planner = match cli.planner {
+        Which::Archie => FootstepPlanRequestT::PLANNER_ARCHIE,
+        Which::Kaist => FootstepPlanRequestT::PLANNER_KAIST,
+        Which::Lola => FootstepPlanRequestT::PLANNER_LOLA,
+    };
+    req.faithful = cli.faithful;
+    req.max_time_us = (cli.budget_ms * 1000) as i64;
+    node.publisher().publish(&cli.request_channel, &req)?;
+    let until = Instant::now() + std::time::Duration::from_secs_f64(cli.wait_s);
+    let mut ticker = Ticker::new(100.0);
+    while Instant::now() < until && ticker.wait(&node)?.is_some() {
+        while let Ok(plan) = plans.try_recv() {
+            if plan.request_id != id {
+                continue;
+            }
+            let status = match plan.status {
+                FootstepPlanT::STATUS_OK => "ok",
+                FootstepPlanT::STATUS_PARTIAL => "partial",
+                FootstepPlanT::STATUS_NO_PATH => "no path",
+                FootstepPlanT::STATUS_START_IN_COLLISION => "start in collision",
+                FootstepPlanT::STATUS_GOAL_IN_COLLISION => "goal in collision",
+                FootstepPlanT::STATUS_GOAL_OUTSIDE_MAP => "goal outside the map",
+                _ => "bad request",
+            };
+            let detail = if plan.detail.is_empty() {
+                String::new()
+            } else {
+                format!(": {}", plan.detail)
+            };
+            println!(
+                "{:?} ({}): status {} ({status}{detail}), cost {:.3}, {} steps, {} expansions, {} µs",
+                cli.planner,
+                if cli.faithful { "faithful" } else { "improved" },
+                plan.status,
+                plan.cost,
+                plan.num_steps,
+                plan.expansions,
+                plan.prepare_time_us + plan.search_time_us
+            );
+            for s in &plan.steps {
+                println!(
+                    "  step {:>3} {} x {:>7.3} y {:>7.3} z {:>6.3} yaw {:>7.2}°{}",
+                    s.step_number,
+                    if s.foot.side == FootT::SIDE_LEFT {
+                        "L"
+                    } else {
+                        "R"
+                    },
+                    s.foot.x,
+                    s.foot.y,
+                    s.foot.z,
+                    s.foot.yaw.to_degrees(),
+                    if s.is_padding { "  (in place)" } else { "" }
+                );
+            }
+            let ok =
+                [FootstepPlanT::STATUS_OK, FootstepPlanT::STATUS_PARTIAL].contains(&plan.status);
+            std::process::exit(if ok { 0 } else { 1 });
+        }
+    }
+    anyhow::bail!(
+        "no answer on {} within {} s: is stride-footstep-planner running?",
+        cli.plan_channel,
+        cli.wait_s
+    )
 }
 
 struct Job {
@@ -49,6 +163,9 @@ struct Job {
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
+    if let Some(goal) = cli.ask {
+        return ask(&cli, goal);
+    }
     let mut world = match &cli.scene {
         Some(path) => World::from_scene(
             Scene::load(path).with_context(|| format!("loading {}", path.display()))?,
