@@ -68,20 +68,27 @@ pub fn bin(name: &str) -> PathBuf {
 }
 
 /// Starts the stock `lcm-logger` recording `channels` on `url` into `path`, and returns once
-/// it runs and has had time to subscribe.
-pub fn lcm_logger(url: &str, channels: &str, path: &std::path::Path) -> Proc {
+/// it records (a ping on `probe`, one of those channels, is in the file).
+pub fn lcm_logger(url: &str, channels: &str, path: &std::path::Path, probe: &str) -> Proc {
     let mut c = Command::new("lcm-logger");
     // liblcm 1.3.1's lcm-logger rejects the short `-l`; the long form works everywhere.
     c.args(["-q", "-f", "-c", channels, "--flush-interval=10"])
         .arg(format!("--lcm-url={url}"))
         .arg(path);
     let p = Proc::spawn(c);
+    // Ready when it records: a ping on `probe` (a channel it records) until one is in the file.
+    // A fixed wait was not enough on a loaded machine: the logger subscribed late and missed
+    // most of a test's messages.
+    let lcm = lcm::Lcm::new(url).expect("an LCM for the probe");
     let t0 = Instant::now();
-    while !path.exists() && t0.elapsed() < Duration::from_secs(10) {
+    while t0.elapsed() < Duration::from_secs(20) {
+        let _ = lcm.publish(probe, &stride_lcmtypes::stride::PingT::default());
         std::thread::sleep(Duration::from_millis(20));
+        if std::fs::metadata(path).is_ok_and(|m| m.len() > 0) {
+            return p;
+        }
     }
-    std::thread::sleep(Duration::from_millis(500));
-    p
+    panic!("lcm-logger recorded nothing on {probe} within 20 s");
 }
 
 /// A child process killed (SIGINT, then SIGKILL) when dropped.

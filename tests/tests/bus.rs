@@ -95,7 +95,7 @@ fn lcm_logger_log_is_read_by_our_crate() {
     let url = udpm_url(7713);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("rec.lcmlog");
-    let logger = stride_tests::lcm_logger(&url, "REC_.*", &path);
+    let logger = stride_tests::lcm_logger(&url, "REC_.*", &path, "REC_PROBE");
     let lcm = Lcm::new(&url).unwrap();
     for i in 0..20 {
         lcm.publish("REC_PING", &ping(i, 64)).unwrap();

@@ -97,7 +97,7 @@ fn reads_and_exports_an_lcm_logger_recording() {
     let url = udpm_url(7743);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("rec.lcmlog");
-    let logger = stride_tests::lcm_logger(&url, "SPY_.*", &path);
+    let logger = stride_tests::lcm_logger(&url, "SPY_.*", &path, "SPY_PROBE");
     let lcm = Lcm::new(&url).unwrap();
     for i in 0..10 {
         lcm.publish("SPY_REC", &ping(i)).unwrap();
