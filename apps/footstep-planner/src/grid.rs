@@ -14,6 +14,30 @@ use crate::scene::Scene;
 /// Margin around the scene's bounding box when it gives no map, m.
 pub const MARGIN: f64 = 1.5;
 
+/// How much longer than a straight line a way along 16-neighbour grid moves can be: the
+/// directions are at most 26.57° apart, so 1/cos(13.28°).
+pub const GRID_DETOUR: f64 = 1.0275;
+
+/// The 16 moves of the distance fields: to the 8 neighbours and the 8 knight's moves.
+const MOVES: [(i64, i64); 16] = [
+    (1, 0),
+    (-1, 0),
+    (0, 1),
+    (0, -1),
+    (1, 1),
+    (-1, -1),
+    (1, -1),
+    (-1, 1),
+    (2, 1),
+    (-2, -1),
+    (1, 2),
+    (-1, -2),
+    (2, -1),
+    (-2, 1),
+    (1, -2),
+    (-1, 2),
+];
+
 /// An elevation grid.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Grid {
@@ -242,7 +266,7 @@ impl Grid {
     /// The cell holding `p`, if inside the map.
     pub fn cell(&self, p: V2) -> Option<(usize, usize)> {
         let q = (p - self.origin) * (1.0 / self.res);
-        if q.x < 0.0 || q.y < 0.0 {
+        if !(q.x >= 0.0 && q.y >= 0.0 && q.x.is_finite() && q.y.is_finite()) {
             return None;
         }
         let (i, j) = (q.x as usize, q.y as usize);
@@ -306,7 +330,8 @@ impl Grid {
         let j0 = ((lo.y - self.origin.y) / self.res - 0.5).ceil();
         let i1 = ((hi.x - self.origin.x) / self.res - 0.5).floor();
         let j1 = ((hi.y - self.origin.y) / self.res - 0.5).floor();
-        if i0 < 0.0 || j0 < 0.0 || i1 >= self.nx as f64 || j1 >= self.ny as f64 {
+        // Written so that NaN bounds fail too.
+        if !(i0 >= 0.0 && j0 >= 0.0 && i1 < self.nx as f64 && j1 < self.ny as f64) {
             return None;
         }
         let mut top = f64::NEG_INFINITY;
@@ -355,9 +380,9 @@ impl Grid {
         }
     }
 
-    /// The cells from `from` down a distance field, steepest first (16 moves), to its zero or
-    /// until the distance has dropped by `drop`; empty when `from` is off the map or cannot
-    /// reach the zero.
+    /// The cells from `from` down a distance field, each the steepest of the 16 moves, to its
+    /// zero or until the distance has dropped by `drop`; empty when `from` is off the map or
+    /// cannot reach the zero.
     pub fn way(&self, field: &[f64], from: V2, drop: f64) -> Vec<usize> {
         let Some((i, j)) = self.cell(from) else {
             return Vec::new();
@@ -370,15 +395,15 @@ impl Grid {
         let top = field[k];
         while field[k] > 0.0 && top - field[k] < drop {
             let (ci, cj) = ((k % self.nx) as i64, (k / self.nx) as i64);
-            let mut next = (field[k], k);
-            for a in -2i64..=2 {
-                for b in -2i64..=2 {
-                    let (x, y) = (ci + a, cj + b);
-                    if x >= 0 && y >= 0 && (x as usize) < self.nx && (y as usize) < self.ny {
-                        let nk = y as usize * self.nx + x as usize;
-                        if field[nk] < next.0 {
-                            next = (field[nk], nk);
-                        }
+            // The steepest of the 16 moves: the largest drop per metre.
+            let mut next = (0.0, k);
+            for &(a, b) in &MOVES {
+                let (x, y) = (ci + a, cj + b);
+                if x >= 0 && y >= 0 && (x as usize) < self.nx && (y as usize) < self.ny {
+                    let nk = y as usize * self.nx + x as usize;
+                    let slope = (field[k] - field[nk]) / ((a * a + b * b) as f64).sqrt();
+                    if slope > next.0 {
+                        next = (slope, nk);
                     }
                 }
             }
@@ -395,20 +420,10 @@ impl Grid {
     /// moves through cells that `passable` accepts (see [`Grid::distance_field`]).
     pub fn distance_from(&self, sources: &[usize], passable: impl Fn(f64) -> bool) -> Vec<f64> {
         let mut dist = vec![f64::INFINITY; self.nx * self.ny];
-        let moves: Vec<(i64, i64, f64)> = [
-            (1, 0),
-            (0, 1),
-            (1, 1),
-            (1, -1),
-            (2, 1),
-            (1, 2),
-            (2, -1),
-            (1, -2),
-        ]
-        .iter()
-        .flat_map(|&(a, b): &(i64, i64)| [(a, b), (-a, -b)])
-        .map(|(a, b)| (a, b, ((a * a + b * b) as f64).sqrt() * self.res))
-        .collect();
+        let moves: Vec<(i64, i64, f64)> = MOVES
+            .iter()
+            .map(|&(a, b)| (a, b, ((a * a + b * b) as f64).sqrt() * self.res))
+            .collect();
         let mut heap = BinaryHeap::new();
         for &k in sources {
             dist[k] = 0.0;

@@ -26,7 +26,7 @@ use std::collections::{BinaryHeap, HashMap};
 use std::time::{Duration, Instant};
 
 use crate::geom::{v2, wrap, V2};
-use crate::grid::{Grid, GridError};
+use crate::grid::{Grid, GridError, GRID_DETOUR};
 use crate::kaist::{self, Action, CostParams, Subset};
 use crate::plan::{Entry, Foot, Plan, Stats, Status};
 use crate::scene::Scene;
@@ -182,10 +182,13 @@ impl World {
     /// The height a foot at `f` rests on, if it may stand there with the stance foot at
     /// `reference` (R-F1): every cell under it known and at most `step_height` above.
     pub fn foothold(&self, f: &Foot, reference: f64, feas: &Feasibility) -> Option<f64> {
-        let top = self
-            .grid
-            .max_in_rect(f.p, f.yaw, FOOT, 0.0)?
-            .max(self.grid.height(f.p));
+        // `f64::max` would drop a NaN (unknown) cell: they are refused first.
+        let under = self.grid.max_in_rect(f.p, f.yaw, FOOT, 0.0)?;
+        let centre = self.grid.height(f.p);
+        if under.is_nan() || centre.is_nan() {
+            return None;
+        }
+        let top = under.max(centre);
         (top.is_finite() && top <= reference + feas.step_height).then_some(top)
     }
 
@@ -320,7 +323,7 @@ impl Problem<'_> {
     /// A lower bound of the distance from the stance foot of `n` to the goal along any way
     /// its steps can take: the distance field at the robot's centre (which keeps clear of tall
     /// cells, as the field's way does), discounted for the grid (16-neighbour moves overstate
-    /// a straight line by up to 2 %; the cell adds up to 1.5 cells of offset), less the half
+    /// a straight line by up to 2.75 %; the cell adds up to 1.5 cells of offset), less the half
     /// of the feet's separation between the centre and the stance foot.
     fn geodesic(&self, n: &Node) -> Option<f64> {
         let g = &self.world.grid;
@@ -328,7 +331,7 @@ impl Problem<'_> {
         let (i, j) = g.cell(n.centre())?;
         let d = f[j * g.nx + i];
         d.is_finite()
-            .then(|| (d / 1.02 - 1.5 * g.res - n.stance.p.dist(n.other.p) / 2.0).max(0.0))
+            .then(|| (d / GRID_DETOUR - 1.5 * g.res - n.stance.p.dist(n.other.p) / 2.0).max(0.0))
     }
 
     /// The thesis's local-minimum penalty (§2.4, Eq. 15), over m·g, when a tall obstacle lies
@@ -336,8 +339,8 @@ impl Problem<'_> {
     /// beside the obstacle. The thesis's figures of it are lost; as the notes infer it: the
     /// look-ahead follows the heading for [`PENALTY_LOOK`] with the body's width (0.5 m); the
     /// detour point is the nearer side of the obstacle, half the body's width past its edge;
-    /// a step on the spot pays half (the thesis gives those steps a smaller penalty). `None`
-    /// when nothing is ahead.
+    /// a step on the spot is not penalised (the thesis gives those steps a smaller penalty).
+    /// `None` when nothing is ahead, or after a step on the spot.
     fn penalised(&self, n: &Node) -> Option<f64> {
         let p = &self.s.cost;
         let g = &self.world.grid;
@@ -381,9 +384,14 @@ impl Problem<'_> {
         let h = self.alpha * (c.dist(detour) + detour.dist(self.goal))
             + turn(n.heading(), b2)
             + turn(b2, b3);
+        // A step on the spot puts the foot beside the other, along the other's heading.
         let on_the_spot = n.stance.p.dist(n.other.p) < p.w_max + 1e-9
-            && (n.stance.p - n.other.p).dot(V2::polar(n.stance.yaw)).abs() < 1e-9;
-        Some(if on_the_spot { h / 2.0 } else { h })
+            && (n.stance.p - n.other.p).dot(V2::polar(n.other.yaw)).abs() < 1e-9;
+        // The thesis gives steps on the spot a smaller penalty: taken as none.
+        if on_the_spot {
+            return None;
+        }
+        Some(h)
     }
 
     /// The successors of `n`.
@@ -578,14 +586,52 @@ pub fn plan_from(
         }
     }
     let ground = stance.z.min(swing.z);
+    // The goal is in collision when its cell is unknown, or stands more than the body's
+    // height above the lowest cell within half a metre (a goal up a flight of low steps is
+    // not).
     let at_goal = g.height(goal);
-    if at_goal.is_nan() || at_goal > ground + s.feasibility.body_height {
+    let around = g
+        .cell(goal)
+        .map(|_| {
+            let r = (0.5 / g.res) as i64;
+            let mut low = at_goal;
+            for b in -r..=r {
+                for a in -r..=r {
+                    let h = g.height(goal + v2(a as f64 * g.res, b as f64 * g.res));
+                    if !h.is_nan() {
+                        low = low.min(h);
+                    }
+                }
+            }
+            low
+        })
+        .unwrap_or(at_goal);
+    if at_goal.is_nan() || at_goal > around + s.feasibility.body_height {
         return Plan::failed(
             Status::GoalInCollision,
             "the goal is on an obstacle or on unknown ground",
             stats,
         );
     }
+    // The distance field takes the start's ground as the level. Where the terrain climbs in
+    // low steps to cells it counts as tall, its way can be longer than the robot's: no bound
+    // is claimed there.
+    let limit = ground + s.feasibility.body_height;
+    let climbs = (0..g.ny).any(|j| {
+        (0..g.nx).any(|i| {
+            let h = g.h[j * g.nx + i];
+            h > limit
+                && [(1i64, 0i64), (-1, 0), (0, 1), (0, -1)]
+                    .iter()
+                    .any(|&(a, b)| {
+                        let (x, y) = (i as i64 + a, j as i64 + b);
+                        x >= 0 && y >= 0 && (x as usize) < g.nx && (y as usize) < g.ny && {
+                            let n = g.h[y as usize * g.nx + x as usize];
+                            n > ground + s.feasibility.step_height && n <= limit
+                        }
+                    })
+        })
+    });
     let acts = ordered_actions(p, s.actions);
     let alpha = kaist::alpha(p, &acts);
     let field = (s.heuristic == Heuristic::Dijkstra2d).then(|| {
@@ -688,10 +734,11 @@ pub fn plan_from(
         }
     }
     stats.search = t1.elapsed();
-    let admissible = matches!(
-        s.heuristic,
-        Heuristic::Zero | Heuristic::EnergyBound | Heuristic::Dijkstra2d
-    );
+    let admissible = match s.heuristic {
+        Heuristic::Zero | Heuristic::EnergyBound => true,
+        Heuristic::Dijkstra2d => !climbs,
+        _ => false,
+    };
     match incumbent {
         Some((cost, feet, path, w)) => Plan {
             status: Status::Ok,

@@ -34,7 +34,7 @@ use std::time::{Duration, Instant};
 use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 
 use crate::geom::{convex_overlap, foot_cspace, rectangle, v2, wrap, V2};
-use crate::grid::Grid;
+use crate::grid::{Grid, GRID_DETOUR};
 use crate::plan::{Entry, Foot, Plan, Stats, Status};
 use crate::preplan::{self, preplan, Reduced, Way};
 use crate::scene::{Obstacle, Scene};
@@ -561,7 +561,7 @@ impl Problem<'_> {
         match &self.field {
             Some((g, d, _)) if self.s.couple_heuristic => match g.cell(m) {
                 Some((i, j)) if d[j * g.nx + i].is_finite() => {
-                    let way = d[j * g.nx + i] / 1.02 - 1.5 * g.res;
+                    let way = d[j * g.nx + i] / GRID_DETOUR - 1.5 * g.res;
                     e.max((way.max(0.0).powi(2) + dth * dth).sqrt())
                 }
                 _ => e,
@@ -754,9 +754,10 @@ pub fn plan_from(
         );
         let d = g.distance_field(goal, |h| h == 0.0);
         // Coupling 2: the distance from the way the robot's centre would take.
-        let corridor = s.corridor.map(|_| {
+        // (None when the centre has no way: the corridor is then off.)
+        let corridor = s.corridor.and_then(|_| {
             let way = g.way(&d, (stance.p + swing.p) * 0.5, f64::INFINITY);
-            g.distance_from(&way, |_| true)
+            (!way.is_empty()).then(|| g.distance_from(&way, |_| true))
         });
         (g, d, corridor)
     });
@@ -790,8 +791,9 @@ pub fn plan_from(
     } else {
         passes.push((1.0, s.lattice, false));
     }
-    // Towards a horizon, cost alone does not rank plans: one pass.
+    // Towards a horizon, cost alone does not rank plans: one pass, on the fine lattice.
     if s.horizon.is_some() {
+        passes.retain(|p| p.2 || !lattice);
         passes.truncate(1);
     }
     let mut best = (pr.h(&stance), vec![root], 0usize);

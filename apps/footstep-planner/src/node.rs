@@ -113,17 +113,52 @@ pub fn plan_request(req: &FootstepPlanRequestT, world: &World) -> (FootstepPlanT
         FootstepPlanRequestT::PLANNER_LOLA => Some(Which::Lola),
         _ => None,
     };
-    let Some(which) = which else {
-        let plan = Plan::failed(
-            Status::NoPath,
-            format!(
-                "unknown planner {} (PLANNER_ARCHIE, PLANNER_KAIST or PLANNER_LOLA)",
-                req.planner
-            ),
-            Stats::default(),
-        );
-        return (to_msg(req, &plan, 0, true), Vec::new(), 0.0);
+    let refuse = |why: String| {
+        let plan = Plan::failed(Status::NoPath, why, Stats::default());
+        (to_msg(req, &plan, 0, true), Vec::new(), 0.0)
     };
+    let Some(which) = which else {
+        return refuse(format!(
+            "unknown planner {} (PLANNER_ARCHIE, PLANNER_KAIST or PLANNER_LOLA)",
+            req.planner
+        ));
+    };
+    let numbers = [
+        req.stance.x,
+        req.stance.y,
+        req.stance.z,
+        req.stance.yaw,
+        req.swing.x,
+        req.swing.y,
+        req.swing.z,
+        req.swing.yaw,
+        req.goal_x,
+        req.goal_y,
+        req.goal_yaw,
+        req.goal_tolerance,
+        req.goal_yaw_tolerance,
+    ];
+    if numbers.iter().any(|v| !v.is_finite()) {
+        return refuse("a foot or the goal is not a finite number".into());
+    }
+    if req.stance.side == req.swing.side {
+        return refuse("the stance and swing feet are the same side".into());
+    }
+    if req.goal_tolerance < 0.0 || req.goal_yaw_tolerance < 0.0 || req.max_expansions < 0 {
+        return refuse("a tolerance or the expansion cap is negative".into());
+    }
+    let (mut horizon, mut corridor) = (None, None);
+    for (name, value) in req.param_names.iter().zip(&req.param_values) {
+        match name.as_str() {
+            "horizon" if *value >= 1.0 => horizon = Some(*value as usize),
+            "corridor" if *value > 0.0 => corridor = Some(*value),
+            _ => {
+                return refuse(format!(
+                    "parameter {name} = {value} is not known (horizon >= 1 steps, corridor > 0 m)"
+                ))
+            }
+        }
+    }
     let r = Request {
         planner: which,
         faithful: req.faithful,
@@ -139,8 +174,12 @@ pub fn plan_request(req: &FootstepPlanRequestT, world: &World) -> (FootstepPlanT
             yaw: req.goal_yaw,
             z: 0.0,
         },
-        horizon: None,
+        horizon,
         feet: Some((foot_of(&req.stance), foot_of(&req.swing))),
+        tolerance: (req.goal_tolerance > 0.0).then_some(req.goal_tolerance),
+        yaw_tolerance: (req.goal_yaw_tolerance > 0.0).then_some(req.goal_yaw_tolerance),
+        max_expansions: (req.max_expansions > 0).then_some(req.max_expansions as u64),
+        corridor,
     };
     let budget = if req.max_time_us > 0 {
         Duration::from_micros(req.max_time_us as u64)
@@ -268,7 +307,8 @@ pub fn to_msg(
         collision_queries: plan.stats.collision_queries as i64,
         prepare_time_us: plan.stats.prepare.as_micros() as i64,
         search_time_us: plan.stats.search.as_micros() as i64,
-        suboptimality: 1.0,
+        // The anytime searches' bound; 0 where a planner gives none.
+        suboptimality: plan.bound.unwrap_or(0.0),
     }
 }
 
@@ -434,6 +474,40 @@ mod tests {
     }
 
     #[test]
+    fn bad_requests_are_refused_with_reasons() {
+        let good = request((4.0, 0.0), FootstepPlanRequestT::PLANNER_KAIST, false);
+        let refused = |r: FootstepPlanRequestT, why: &str| {
+            let (msg, _, _) = plan_request(&r, &World::default());
+            assert_eq!(msg.status, FootstepPlanT::STATUS_BAD_REQUEST, "{why}");
+            assert!(msg.detail.contains(why), "{}", msg.detail);
+            assert!(msg.num_steps >= 3);
+        };
+        refused(
+            FootstepPlanRequestT {
+                goal_x: f64::NAN,
+                ..good.clone()
+            },
+            "not a finite number",
+        );
+        let mut same = good.clone();
+        same.swing.side = same.stance.side;
+        refused(same, "same side");
+        let mut param = good.clone();
+        param.num_params = 1;
+        param.param_names = vec!["speed".into()];
+        param.param_values = vec![2.0];
+        refused(param, "parameter speed = 2 is not known");
+        // The request's cap is the search's.
+        let capped = FootstepPlanRequestT {
+            max_expansions: 3,
+            ..good
+        };
+        let (msg, _, _) = plan_request(&capped, &World::default());
+        assert!(msg.expansions <= 3 + 1, "{}", msg.expansions);
+        assert_ne!(msg.status, FootstepPlanT::STATUS_OK);
+    }
+
+    #[test]
     fn every_planner_answers_through_the_node() {
         for planner in [
             FootstepPlanRequestT::PLANNER_KAIST,
@@ -451,6 +525,12 @@ mod tests {
                 assert!(msg.num_steps >= 3 && !path.is_empty());
                 for w in msg.steps.windows(2) {
                     assert_ne!(w[0].foot.side, w[1].foot.side);
+                }
+                // The anytime search says how good its plan is; the thesis's gives no bound.
+                if faithful {
+                    assert_eq!(msg.suboptimality, 0.0);
+                } else {
+                    assert!(msg.suboptimality >= 1.0, "{}", msg.suboptimality);
                 }
                 // The first step is the swing foot's, forwards: not a step in place.
                 let first = &msg.steps[0];

@@ -39,6 +39,14 @@ pub struct Request {
     /// planners start from them; otherwise from the feet side by side at `start`, the right
     /// one to step first).
     pub feet: Option<(Foot, Foot)>,
+    /// How near the goal counts as arrived (m), if not the planner's own.
+    pub tolerance: Option<f64>,
+    /// How near the goal's heading counts (rad; LOLA's planner), if not its own.
+    pub yaw_tolerance: Option<f64>,
+    /// Expansions at most, if not the planner's own cap.
+    pub max_expansions: Option<u64>,
+    /// LOLA's coupling 2: the corridor around the pre-planner's way (m), if wanted.
+    pub corridor: Option<f64>,
 }
 
 /// The scene with the request's start and goal (so a map made from the scene's extent holds
@@ -92,6 +100,12 @@ pub fn plan(req: &Request, world: &Scene, budget: Duration) -> Plan {
             };
             let mut s = kaist_search::Settings::new(mode, cost);
             s.budget = budget;
+            if let Some(t) = req.tolerance {
+                s.tolerance = t;
+            }
+            if let Some(n) = req.max_expansions {
+                s.max_expansions = n;
+            }
             let (stance, swing) = req
                 .feet
                 .unwrap_or_else(|| Foot::standing(start, req.start.yaw, s.cost.w_nom));
@@ -107,6 +121,16 @@ pub fn plan(req: &Request, world: &Scene, budget: Duration) -> Plan {
             let mut s = lola::Settings::new(mode);
             s.budget = budget;
             s.horizon = req.horizon;
+            s.corridor = req.corridor.or(s.corridor);
+            if let Some(t) = req.tolerance {
+                s.tolerance.0 = t;
+            }
+            if let Some(t) = req.yaw_tolerance {
+                s.tolerance.1 = t;
+            }
+            if let Some(n) = req.max_expansions {
+                s.max_expansions = n;
+            }
             let (stance, swing) = req
                 .feet
                 .unwrap_or_else(|| Foot::standing(start, req.start.yaw, s.robot.width));
@@ -135,5 +159,9 @@ pub fn scene_request(scene: &Scene, faithful: bool) -> Request {
         goal: scene.goal,
         horizon: None,
         feet: None,
+        tolerance: None,
+        yaw_tolerance: None,
+        max_expansions: None,
+        corridor: None,
     }
 }

@@ -82,7 +82,7 @@ pub enum Obstacle {
     },
     /// An extruded convex polygon.
     Polygon {
-        /// Corners, counter-clockwise, m.
+        /// Corners, m (in any order: their convex hull is the footprint).
         points: Vec<[f64; 2]>,
         /// Height, m (infinite when absent).
         #[serde(default)]
@@ -144,8 +144,9 @@ impl Obstacle {
                         .collect(),
                 )
             }
+            // Whatever the order of the corners (or a dent in them), their hull.
             Obstacle::Polygon { points, .. } => {
-                Some(points.iter().map(|p| v2(p[0], p[1])).collect())
+                Some(convex_hull(points.iter().map(|p| v2(p[0], p[1])).collect()))
             }
             Obstacle::Capsule { a, b, radius } => {
                 Some(rounded_hull(&[v2(a[0], a[1]), v2(b[0], b[1])], *radius))

@@ -256,6 +256,10 @@ fn r_f1_foot_level() {
     assert_eq!(bump(0.04).foothold(&on, 0.0, &feas), Some(0.04));
     assert_eq!(bump(0.06).foothold(&on, 0.0, &feas), None);
     assert_eq!(bump(f64::NAN).foothold(&on, 0.0, &feas), None);
+    // Unknown under the toe only, the centre known: refused too.
+    let toe = block([0.55, 0.65], [-0.05, 0.05], f64::NAN);
+    assert!(toe.grid.height(on.p) == 0.0);
+    assert_eq!(toe.foothold(&on, 0.0, &feas), None);
     // Half on it counts too; off the map is refused.
     assert_eq!(
         bump(0.06).foothold(&foot(0.35, 0.0, true), 0.0, &feas),
@@ -327,6 +331,27 @@ fn deadline_an_unreachable_goal_answers_with_the_best_partial_plan() {
     let p = plan(v2(0.0, 0.0), 0.0, v2(3.0, 0.0), &w, Mode::Improved, &st);
     assert_eq!(p.status, Status::Partial);
     assert_eq!(p.detail, "the time budget ran out");
+}
+
+#[test]
+fn a_goal_up_a_flight_of_low_steps() {
+    // Risers of 5 cm up to a 0.2 m landing: the goal on it is not "in collision", the robot
+    // climbs there, and no bound is claimed (the 2-D field counts the landing as tall).
+    let mut g = Grid::flat([-1.0, 3.5], [-1.0, 1.0], 0.05);
+    for (k, h) in [0.05, 0.10, 0.15].iter().enumerate() {
+        let x0 = 1.0 + 0.2 * k as f64;
+        g.paint(|p| (x0..x0 + 0.2).contains(&p.x), |_| *h);
+    }
+    g.paint(|p| p.x >= 1.6, |_| 0.20);
+    let w = World { grid: g };
+    let mut st = Settings::new(Mode::Improved, CostParams::kaist_sim());
+    st.budget = Duration::from_secs(600);
+    st.max_expansions = 50_000;
+    let p = plan(v2(0.0, 0.0), 0.0, v2(2.3, 0.0), &w, Mode::Improved, &st);
+    assert_eq!(p.status, Status::Ok, "{}", p.detail);
+    feasible(&p, &w);
+    assert!((p.steps.last().unwrap().z - 0.20).abs() < 1e-9);
+    assert_eq!(p.bound, None);
 }
 
 #[test]

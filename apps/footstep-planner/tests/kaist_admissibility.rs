@@ -11,7 +11,7 @@
 use std::collections::{BinaryHeap, HashMap};
 
 use proptest::prelude::Rng;
-use proptest::test_runner::{Config, TestRng, TestRunner};
+use proptest::test_runner::{TestRng, TestRunner};
 use stride_footstep_planner::geom::{v2, wrap, V2};
 use stride_footstep_planner::kaist::{self, CostParams};
 use stride_footstep_planner::kaist_search::apply;
@@ -72,7 +72,8 @@ fn r_h3_improved_heuristic_never_exceeds_the_exact_cost() {
     let p = CostParams::kaist_sim();
     let acts = kaist::actions(&p);
     let alpha = kaist::alpha(&p, &acts);
-    let mut rng: TestRng = TestRunner::new(Config::default()).rng().clone();
+    // A fixed seed: the same 1080 pairs every run.
+    let mut rng: TestRng = TestRunner::deterministic().rng().clone();
     let (mut checked, mut violations, mut thesis_over, mut thesis_worst) = (0, 0, 0, 0.0f64);
     let (mut ratio_sum, mut consistency) = (0.0, 0);
     let states = 12;

@@ -81,3 +81,16 @@ fn an_elevation_file_reads_top_row_first() {
     assert!(e.contains("2 columns; the map's extent needs 3"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_clockwise_polygon_is_an_obstacle_all_the_same() {
+    let s = Scene::parse(
+        "name = \"x\"\nstart = { x = 0.0, y = 0.0 }\ngoal = { x = 3.0, y = 0.0 }\n\
+         [[obstacle]]\nshape = \"polygon\"\npoints = [[1.0, 1.0], [2.0, 1.0], [2.0, -1.0], [1.0, -1.0]]\n\
+         height = 1.0\n",
+        &std::env::temp_dir(),
+    )
+    .unwrap();
+    let g = Grid::of_scene(&s).unwrap();
+    assert_eq!(g.height(stride_footstep_planner::geom::v2(1.5, 0.0)), 1.0);
+}
