@@ -396,14 +396,13 @@ impl Grid {
         while field[k] > 0.0 && top - field[k] < drop {
             let (ci, cj) = ((k % self.nx) as i64, (k / self.nx) as i64);
             // The steepest of the 16 moves: the largest drop per metre.
-            let mut next = (0.0, k);
+            let mut next = (field[k], k);
             for &(a, b) in &MOVES {
                 let (x, y) = (ci + a, cj + b);
                 if x >= 0 && y >= 0 && (x as usize) < self.nx && (y as usize) < self.ny {
                     let nk = y as usize * self.nx + x as usize;
-                    let slope = (field[k] - field[nk]) / ((a * a + b * b) as f64).sqrt();
-                    if slope > next.0 {
-                        next = (slope, nk);
+                    if field[nk] < next.0 {
+                        next = (field[nk], nk);
                     }
                 }
             }

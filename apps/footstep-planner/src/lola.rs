@@ -128,6 +128,9 @@ pub struct Settings {
     /// Margin of the distance field's point robot around tall obstacles, m (the thesis's
     /// pre-planner keeps its own, 0.25 m).
     pub margin: f64,
+    /// Margin of the field whose way gives the desired heading where it leaves room (wider,
+    /// so that the feet and shanks pass obstacles with room to spare), m.
+    pub heading_margin: f64,
     /// Which 2-D pre-planner the couplings follow.
     pub preplanner: PrePlanner,
     /// Coupling 1: the pre-planner's way as heuristic.
@@ -163,6 +166,7 @@ impl Settings {
             budget: Duration::from_millis(400),
             max_expansions: 1_000_000,
             margin: 0.1,
+            heading_margin: 0.25,
             preplanner: if improved {
                 PrePlanner::Field
             } else {
@@ -538,14 +542,31 @@ pub fn mid(f: &Foot, width: f64) -> V2 {
     f.p + v2(-f.yaw.sin(), f.yaw.cos()) * (side * width / 2.0)
 }
 
+/// Within this distance of the goal (m) every pass detects duplicates on the planner's own
+/// lattice.
+const GOAL_FINE: f64 = 0.5;
+
 struct Problem<'a> {
     world: &'a World,
     s: &'a Settings,
     goal: V2,
     goal_yaw: f64,
     steps: Vec<(f64, f64, f64)>,
-    field: Option<(Grid, Vec<f64>, Option<Vec<f64>>)>,
+    field: Option<Field>,
     way: Option<Way>,
+    /// Whether a step onto the goal is tried near it.
+    snap: bool,
+}
+
+/// The improved pre-planner's distance fields, on one grid.
+struct Field {
+    grid: Grid,
+    /// Distances to the goal around the tall obstacles grown by the margin (the heuristic).
+    dist: Vec<f64>,
+    /// The same around them grown by the heading margin (the desired heading), where finite.
+    heading: Vec<f64>,
+    /// Distances from the centre's way (the corridor), if asked.
+    corridor: Option<Vec<f64>>,
 }
 
 impl Problem<'_> {
@@ -559,7 +580,9 @@ impl Problem<'_> {
             return (l_g * l_g + dth * dth).sqrt();
         }
         match &self.field {
-            Some((g, d, _)) if self.s.couple_heuristic => match g.cell(m) {
+            Some(Field {
+                grid: g, dist: d, ..
+            }) if self.s.couple_heuristic => match g.cell(m) {
                 Some((i, j)) if d[j * g.nx + i].is_finite() => {
                     let way = d[j * g.nx + i] / GRID_DETOUR - 1.5 * g.res;
                     e.max((way.max(0.0).powi(2) + dth * dth).sqrt())
@@ -585,10 +608,20 @@ impl Problem<'_> {
             let (_, tangent, _) = w.project(m);
             return wrap(tangent - f.yaw).clamp(-0.2, 0.2);
         }
-        let Some((g, dist, _)) = &self.field else {
+        let Some(Field {
+            grid: g,
+            dist,
+            heading,
+            ..
+        }) = &self.field
+        else {
             return d;
         };
-        match g.descent(dist, m, 0.6) {
+        // Wide of the obstacles where there is room, else along the heuristic's way.
+        let roomy = g
+            .cell(m)
+            .is_some_and(|(i, j)| heading[j * g.nx + i].is_finite());
+        match g.descent(if roomy { heading } else { dist }, m, 0.6) {
             Some(to) => wrap((to - m).angle() - f.yaw).clamp(-0.2, 0.2),
             None => d,
         }
@@ -596,38 +629,73 @@ impl Problem<'_> {
 
     fn successors(&self, n: &Node, stats: &mut Stats) -> Vec<(Foot, f64)> {
         let s = self.s;
-        let r = &s.robot;
         let (lx0, ly0, _) = s.desired;
         let phi0 = self.desired_turn(&n.stance);
         let mut out = Vec::new();
         for &(dx, dy, dp) in &self.steps {
-            let (lx, ly, phi) = (lx0 + dx, ly0 + dy, phi0 + dp);
-            if !(LX.0..=LX.1).contains(&lx) || !(LY.0..=LY.1).contains(&ly) || phi.abs() > PHI {
-                continue;
+            if let Some(step) = self.step(n, (lx0 + dx, ly0 + dy, phi0 + dp), phi0, stats) {
+                out.push(step);
             }
-            stats.generated += 1;
-            let mut f = place(&n.stance, (lx, ly, phi), r.width);
-            if let (Some(dmax), Some((g, _, Some(c)))) = (s.corridor, &self.field) {
-                if g.cell(mid(&f, r.width))
-                    .is_none_or(|(i, j)| c[j * g.nx + i] > dmax)
-                {
-                    continue;
-                }
+        }
+        // The step onto the goal, when one step can reach it (improved mode).
+        if self.snap && mid(&n.stance, s.robot.width).dist(self.goal) < GOAL_FINE {
+            let (left, right) = Foot::standing(self.goal, self.goal_yaw, s.robot.width);
+            let to = if n.stance.left { right } else { left };
+            if let Some(step) = self.step(n, unplace(&n.stance, &to, s.robot.width), phi0, stats) {
+                out.push(step);
             }
-            let Some(z) = self.world.foothold(&f, r, stats) else {
-                continue;
-            };
-            f.z = z;
-            if (z - n.stance.z).abs() > r.max_step_height {
-                continue;
-            }
-            if self.world.swing(&n.other, &f, r, stats) > r.h_max {
-                continue;
-            }
-            out.push((f, step_cost(s, (lx, ly, phi), phi0)));
         }
         out
     }
+
+    /// The step (advance, width, turn) from `n`'s stance with its cost, if the robot can make it.
+    fn step(
+        &self,
+        n: &Node,
+        (lx, ly, phi): (f64, f64, f64),
+        phi0: f64,
+        stats: &mut Stats,
+    ) -> Option<(Foot, f64)> {
+        let s = self.s;
+        let r = &s.robot;
+        if !(LX.0..=LX.1).contains(&lx) || !(LY.0..=LY.1).contains(&ly) || phi.abs() > PHI {
+            return None;
+        }
+        stats.generated += 1;
+        let mut f = place(&n.stance, (lx, ly, phi), r.width);
+        if let (
+            Some(dmax),
+            Some(Field {
+                grid: g,
+                corridor: Some(c),
+                ..
+            }),
+        ) = (s.corridor, &self.field)
+        {
+            if g.cell(mid(&f, r.width))
+                .is_none_or(|(i, j)| c[j * g.nx + i] > dmax)
+            {
+                return None;
+            }
+        }
+        f.z = self.world.foothold(&f, r, stats)?;
+        if (f.z - n.stance.z).abs() > r.max_step_height
+            || self.world.swing(&n.other, &f, r, stats) > r.h_max
+        {
+            return None;
+        }
+        Some((f, step_cost(s, (lx, ly, phi), phi0)))
+    }
+}
+
+/// The step (advance, width, turn) that [`place`] turns into the foot `to` from `stance`.
+pub fn unplace(stance: &Foot, to: &Foot, width: f64) -> (f64, f64, f64) {
+    let side = if stance.left { -1.0 } else { 1.0 };
+    let phi = wrap(to.yaw - stance.yaw);
+    let h = stance.yaw + phi / 2.0;
+    let (d, s) = (V2::polar(h), v2(-h.sin(), h.cos()));
+    let delta = to.p - stance.p;
+    (delta.dot(d), side * delta.dot(s) - width, phi)
 }
 
 /// The cost of a step (Eq. 4.8): the desired step's weighted length plus k times the
@@ -739,27 +807,33 @@ pub fn plan_from(
             .iter()
             .filter(|t| !t.edge && t.top - t.aabb.mins.z.max(0.0) > r.h_max)
             .collect();
-        let grow = s.margin;
-        g.paint(
-            |p| {
-                tall.iter().any(|t| {
-                    t.aabb.mins.x - grow <= p.x
-                        && p.x <= t.aabb.maxs.x + grow
-                        && t.aabb.mins.y - grow <= p.y
-                        && p.y <= t.aabb.maxs.y + grow
-                        && t.solid.footprint_distance(p) < grow
-                })
-            },
-            |_| 1.0,
-        );
-        let d = g.distance_field(goal, |h| h == 0.0);
+        // Cells within the heading margin hold 1, within the margin 2.
+        let near = |p: V2, grow: f64| {
+            tall.iter().any(|t| {
+                t.aabb.mins.x - grow <= p.x
+                    && p.x <= t.aabb.maxs.x + grow
+                    && t.aabb.mins.y - grow <= p.y
+                    && p.y <= t.aabb.maxs.y + grow
+                    && t.solid.footprint_distance(p) < grow
+            })
+        };
+        let wide = s.heading_margin.max(s.margin);
+        g.paint(|p| near(p, wide), |_| 1.0);
+        g.paint(|p| near(p, s.margin), |_| 2.0);
+        let heading = g.distance_field(goal, |h| h == 0.0);
+        let d = g.distance_field(goal, |h| h < 2.0);
         // Coupling 2: the distance from the way the robot's centre would take.
         // (None when the centre has no way: the corridor is then off.)
         let corridor = s.corridor.and_then(|_| {
             let way = g.way(&d, (stance.p + swing.p) * 0.5, f64::INFINITY);
             (!way.is_empty()).then(|| g.distance_from(&way, |_| true))
         });
-        (g, d, corridor)
+        Field {
+            grid: g,
+            dist: d,
+            heading,
+            corridor,
+        }
     });
     let pr = Problem {
         world,
@@ -769,6 +843,7 @@ pub fn plan_from(
         steps: suggestions(s.reduced),
         field,
         way,
+        snap: mode == Mode::Improved,
     };
     stats.prepare = t0.elapsed();
     let t1 = Instant::now();
@@ -791,10 +866,10 @@ pub fn plan_from(
     } else {
         passes.push((1.0, s.lattice, false));
     }
-    // Towards a horizon, cost alone does not rank plans: one pass, on the fine lattice.
+    // Towards a horizon, cost alone does not rank plans: the first plan found stands, the
+    // scouting pass's or, when that runs dry, the first fine pass's.
     if s.horizon.is_some() {
-        passes.retain(|p| p.2 || !lattice);
-        passes.truncate(1);
+        passes.truncate(if lattice && s.scout.is_some() { 2 } else { 1 });
     }
     let mut best = (pr.h(&stance), vec![root], 0usize);
     let mut found: Option<(Vec<Node>, usize, Status, f64)> = None;
@@ -820,6 +895,9 @@ pub fn plan_from(
                     why = "the horizon";
                 }
                 found = Some((nodes, i, status, w));
+                if s.horizon.is_some() {
+                    break;
+                }
             }
             // Nothing cheaper below the incumbent within this weight: it stands, bound w. A
             // scouting pass that runs dry proves nothing: the fine passes go on.
@@ -915,16 +993,21 @@ fn pass(
         order,
         node: 0,
     }]);
+    // Near the goal the planner's own lattice, so that a coarse pass can still meet the
+    // tolerance (the key's last field tells the two apart).
     let key = |f: &Foot| {
         let m = mid(f, r.width);
+        let near = m.dist(goal) < GOAL_FINE;
+        let c = if near { s.lattice } else { cells };
         (
-            (m.x / cells.0).round() as i64,
-            (m.y / cells.0).round() as i64,
-            (wrap(f.yaw) / cells.1.to_radians()).round() as i64,
+            (m.x / c.0).round() as i64,
+            (m.y / c.0).round() as i64,
+            (wrap(f.yaw) / c.1.to_radians()).round() as i64,
             f.left,
+            near,
         )
     };
-    let mut best_g: HashMap<(i64, i64, i64, bool), f64> = HashMap::new();
+    let mut best_g: HashMap<(i64, i64, i64, bool, bool), f64> = HashMap::new();
     let mut best_here = (best.0, 0usize);
     let finish = |nodes: Vec<Node>, best_here: (f64, usize), best: &mut (f64, Vec<Node>, usize)| {
         if best_here.1 != 0 && best_here.0 < best.0 {

@@ -7,7 +7,7 @@ use std::time::Duration;
 use proptest::prelude::*;
 use stride_footstep_planner::geom::{v2, wrap, V2};
 use stride_footstep_planner::lola::{
-    mid, place, plan, step_cost, suggestion_count, Mode, Settings, World,
+    mid, place, plan, step_cost, suggestion_count, unplace, Mode, Settings, World,
 };
 use stride_footstep_planner::plan::{Foot, Plan, Stats, Status};
 use stride_footstep_planner::scene::Scene;
@@ -185,6 +185,19 @@ proptest! {
         let next = place(&stance, (lx, ly, phi), s.robot.width);
         let c = step_cost(&s, (lx, ly, phi), turn);
         prop_assert!(h(&stance) <= c + h(&next) + 1e-9, "{} > {} + {}", h(&stance), c, h(&next));
+    }
+
+    /// The step onto the goal: `unplace` gives the step that `place` turns into the foot.
+    #[test]
+    fn unplace_inverts_place(
+        x in -1.0f64..3.0, y in -1.5f64..1.5, yaw in -3.1f64..3.1, left: bool,
+        lx in -0.2f64..0.5, ly in -0.05f64..0.25, phi in -0.4f64..0.4,
+    ) {
+        let w = Settings::new(Mode::Improved).robot.width;
+        let stance = Foot { p: v2(x, y), z: 0.0, yaw, left };
+        let to = place(&stance, (lx, ly, phi), w);
+        let (a, b, c) = unplace(&stance, &to, w);
+        prop_assert!((a - lx).abs() < 1e-9 && (b - ly).abs() < 1e-9 && (c - phi).abs() < 1e-9);
     }
 }
 
