@@ -357,8 +357,8 @@ impl Grid {
         Some(top)
     }
 
-    /// Down a distance field from `p`: the cell the steepest way reaches once the distance
-    /// has dropped by `ahead` (or the goal's), if `p` is on the map and reaches the goal.
+    /// Down a distance field from `p`: the cell [`Grid::way`] reaches once the distance has
+    /// dropped by `ahead` (or the goal's), if `p` is on the map and reaches the goal.
     pub fn descent(&self, field: &[f64], p: V2, ahead: f64) -> Option<V2> {
         let way = self.way(field, p, ahead);
         let k0 = *way.first()?;
@@ -380,9 +380,9 @@ impl Grid {
         }
     }
 
-    /// The cells from `from` down a distance field, each the steepest of the 16 moves, to its
-    /// zero or until the distance has dropped by `drop`; empty when `from` is off the map or
-    /// cannot reach the zero.
+    /// The cells from `from` down a distance field, each the lowest of the cells the 16 moves
+    /// reach (the most progress per move), to its zero or until the distance has dropped by
+    /// `drop`; empty when `from` is off the map or cannot reach the zero.
     pub fn way(&self, field: &[f64], from: V2, drop: f64) -> Vec<usize> {
         let Some((i, j)) = self.cell(from) else {
             return Vec::new();
@@ -395,7 +395,7 @@ impl Grid {
         let top = field[k];
         while field[k] > 0.0 && top - field[k] < drop {
             let (ci, cj) = ((k % self.nx) as i64, (k / self.nx) as i64);
-            // The steepest of the 16 moves: the largest drop per metre.
+            // The lowest of the 16 moves' cells: the largest drop per move.
             let mut next = (field[k], k);
             for &(a, b) in &MOVES {
                 let (x, y) = (ci + a, cj + b);
