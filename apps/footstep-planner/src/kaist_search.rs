@@ -11,17 +11,21 @@
 //!   side) and a closed set, the same actions, an admissible energy bound
 //!   ([`kaist::h_improved`]) also taken along the 2-D way around tall cells
 //!   ([`Heuristic::Dijkstra2d`]), and an anytime schedule: a scouting pass of weight 2 on a
-//!   coarse lattice (half the longest step, 15°) for a first plan at once, then weighted A* with
+//!   coarse lattice (half the longest step, 15°) for a first plan at once (its heuristic also
+//!   charges the turn towards the 2-D way, and it walks straight in strides of up to four
+//!   steps where the heuristic sees the way clear: [`Settings::strides`]), then weighted A* with
 //!   a decreasing weight (1.5, 1.2, 1) on the fine one, each pass pruned by the best plan so
-//!   far, until the budget runs out. The plan reports the weight of the last finished pass as its bound (the 2-D part is
-//!   a heuristic, not a proven bound: see [`Heuristic::Dijkstra2d`]). With no plan at the
-//!   budget, the node nearest the goal by the heuristic comes back as a partial plan.
+//!   far, until the budget runs out. The plan reports the weight of the last finished pass as
+//!   its bound (none where the 2-D field cannot be a bound: see [`Heuristic::Dijkstra2d`]).
+//!   With no plan at the budget, the node nearest the goal by the heuristic comes back as a
+//!   partial plan.
 //!
 //! Feasibility is the thesis's, on the grid (the notes' R-F1, R-F2): a foothold is refused when
 //! a cell under the foot is unknown or more than `step_height` above the stance foot; a step is
 //! refused when a cell of either swing ellipse (stance to new foot, grown by the sway; old to
 //! new foot position) is more than `body_height` above the stance foot.
 
+use std::cell::{Cell, RefCell};
 use std::collections::{BinaryHeap, HashMap};
 use std::time::{Duration, Instant};
 
@@ -124,6 +128,9 @@ pub struct Settings {
     /// (improved mode): its plan comes quickly, without a bound, and prunes the passes after
     /// it.
     pub scout: Option<((f64, f64), f64)>,
+    /// The scouting pass also offers the straight step repeated up to this many times as one
+    /// successor (a walk whose inner feet are plan steps, not search nodes); 1 for none.
+    pub strides: usize,
 }
 
 impl Settings {
@@ -153,6 +160,7 @@ impl Settings {
             },
             lattice: (0.05, 5.0),
             scout: (!thesis).then_some(((cost.l_max / 2.0, 15.0), 2.0)),
+            strides: if thesis { 1 } else { 4 },
         }
     }
 }
@@ -289,6 +297,11 @@ struct Problem<'a> {
     field: Option<Vec<f64>>,
     lattice: bool,
     deadline: Instant,
+    /// In the scouting pass, which needs no bound, the heuristic also charges the turn towards
+    /// the 2-D way.
+    scouting: Cell<bool>,
+    /// The 2-D way's direction per cell (NaN: not looked up yet; infinite: none).
+    bearings: RefCell<Vec<f64>>,
 }
 
 impl Problem<'_> {
@@ -312,12 +325,40 @@ impl Problem<'_> {
                 Heuristic::Dijkstra2d => {
                     let e = kaist::h_improved(p, ds, bs, yaw, d, tol);
                     match self.geodesic(n) {
-                        // No direction: the best way round may leave either side.
-                        Some(dg) => e.max(kaist::h_improved(p, dg, yaw, yaw, d, tol)),
+                        // No direction: the best way round may leave either side. The
+                        // scouting pass takes the way's.
+                        Some(dg) => {
+                            let towards = match self.scouting.get() {
+                                true => self.way_bearing(c).unwrap_or(yaw),
+                                false => yaw,
+                            };
+                            e.max(kaist::h_improved(p, dg, towards, yaw, d, tol))
+                        }
                         None => e,
                     }
                 }
             }
+    }
+
+    /// The direction of the 2-D way from the cell of `c`: towards where it has come half a
+    /// metre nearer the goal.
+    fn way_bearing(&self, c: V2) -> Option<f64> {
+        let g = &self.world.grid;
+        let f = self.field.as_ref()?;
+        let (i, j) = g.cell(c)?;
+        let k = j * g.nx + i;
+        let known = self.bearings.borrow()[k];
+        let b = if known.is_nan() {
+            let from = g.centre(i, j);
+            let b = g
+                .descent(f, from, 0.5)
+                .map_or(f64::INFINITY, |to| (to - from).angle());
+            self.bearings.borrow_mut()[k] = b;
+            b
+        } else {
+            known
+        };
+        b.is_finite().then_some(b)
     }
 
     /// A lower bound of the distance from the stance foot of `n` to the goal along any way
@@ -395,7 +436,7 @@ impl Problem<'_> {
     }
 
     /// The successors of `n`.
-    fn successors(&self, n: &Node, stats: &mut Stats) -> Vec<(Foot, f64)> {
+    fn successors(&self, n: &Node, stats: &mut Stats) -> Vec<(Foot, f64, Action)> {
         let s = self.s;
         let p = &s.cost;
         let near = n.centre().dist(self.goal) <= s.full_set_radius;
@@ -427,14 +468,74 @@ impl Problem<'_> {
             {
                 continue;
             }
-            out.push((f, a.energy_mg(p) * p.mg()));
+            out.push((f, a.energy_mg(p) * p.mg(), *a));
             if !full {
                 taken.push(a.subset);
             }
         }
         out
     }
+
+    /// The straight step `a` (taken from `n` to `first`) repeated while the robot can and
+    /// comes nearer the goal, up to `strides` steps in all and until it is at the goal: the
+    /// feet after `first` with their energies (empty when not one more step is possible).
+    fn walk(
+        &self,
+        first: &Node,
+        h_first: f64,
+        a: &Action,
+        strides: usize,
+        stats: &mut Stats,
+    ) -> (Vec<(Foot, f64)>, f64) {
+        let s = self.s;
+        let c = a.energy_mg(&s.cost) * s.cost.mg();
+        let mut out = Vec::new();
+        let (mut at, mut h_at) = (*first, h_first);
+        while out.len() + 1 < strides && at.centre().dist(self.goal) >= s.tolerance {
+            // Cheap tests first: nearer the goal, down the heuristic; then the ground.
+            let mut next = Node {
+                stance: apply(&at.stance, a),
+                other: at.stance,
+                g: 0.0,
+                parent: None,
+            };
+            stats.generated += 1;
+            if next.centre().dist(self.goal) >= at.centre().dist(self.goal) {
+                break;
+            }
+            let h_next = self.h(&next);
+            let near = at.centre().dist(self.goal) <= s.full_set_radius;
+            if !near && h_next > h_at - WALK_FOLLOWS * c {
+                break;
+            }
+            stats.collision_queries += 1;
+            let Some(z) = self
+                .world
+                .foothold(&next.stance, at.stance.z, &s.feasibility)
+            else {
+                break;
+            };
+            next.stance.z = z;
+            if !self
+                .world
+                .body_clear(&at.stance, at.other.p, next.stance.p, &s.feasibility)
+            {
+                break;
+            }
+            out.push((next.stance, c));
+            (at, h_at) = (next, h_next);
+        }
+        (out, h_at)
+    }
 }
+
+/// Steps of a successor: each new foot and the step's energy.
+type Steps = Vec<(Foot, f64)>;
+
+/// A walk goes on only while each step brings the robot nearer the goal and, outside the full
+/// set's radius, lowers the heuristic by at least this share of its energy: where the
+/// heuristic sees no obstacle in the way.
+const WALK_FOLLOWS: f64 = 0.9;
 
 /// How far ahead the local-minimum penalty looks, m (the thesis does not say).
 pub const PENALTY_LOOK: f64 = 1.0;
@@ -450,11 +551,13 @@ enum Pass {
 }
 
 /// One weighted A* pass (a tree search in thesis mode), pruned by `incumbent`.
+#[allow(clippy::too_many_arguments)]
 fn pass(
     pr: &Problem,
     root: Node,
     weight: f64,
     cells: (f64, f64),
+    strides: usize,
     incumbent: f64,
     stats: &mut Stats,
     best: &mut (f64, Vec<Foot>),
@@ -502,12 +605,58 @@ fn pass(
             return (Pass::Stopped("the time budget ran out"), nodes);
         }
         stats.expansions += 1;
-        for (f, c) in pr.successors(&n, stats) {
+        // Each successor: its steps, and its heuristic when already known.
+        let mut children: Vec<(Steps, Option<f64>)> = Vec::new();
+        let mut walked = false;
+        for (f, c, a) in pr.successors(&n, stats) {
+            // The first straight step (the least cost of transport), also walked on for up to
+            // `strides` steps as one successor.
+            if strides > 1 && a.subset == Subset::Forward && !walked {
+                walked = true;
+                let first = Node {
+                    stance: f,
+                    other: n.stance,
+                    g: 0.0,
+                    parent: None,
+                };
+                let h_first = pr.h(&first);
+                // Only where the step itself goes down the heuristic (by a third as much as a
+                // walk's steps must: from feet side by side a step moves the centre half as
+                // far), or near the goal, where the heuristic is one step's floor.
+                let near = n.centre().dist(pr.goal) <= s.full_set_radius;
+                let (more, h_end) = if near || h_first <= hn - WALK_FOLLOWS / 3.0 * c {
+                    pr.walk(&first, h_first, &a, strides, stats)
+                } else {
+                    (Vec::new(), h_first)
+                };
+                if !more.is_empty() {
+                    children.push((std::iter::once((f, c)).chain(more).collect(), Some(h_end)));
+                }
+                children.push((vec![(f, c)], Some(h_first)));
+            } else {
+                children.push((vec![(f, c)], None));
+            }
+        }
+        for (chain, h_known) in children {
+            // The inner feet of a walk are steps of the plan, not nodes of the search.
+            let mut parent = node;
+            let mut g = n.g;
+            let mut inner = Vec::new();
+            for w in chain.windows(2) {
+                g += w[0].1;
+                inner.push(Node {
+                    stance: w[0].0,
+                    other: inner.last().map_or(n.stance, |m: &Node| m.stance),
+                    g,
+                    parent: None,
+                });
+            }
+            let (f, c) = *chain.last().expect("a step");
             let child = Node {
                 stance: f,
-                other: n.stance,
-                g: n.g + c,
-                parent: Some(node),
+                other: inner.last().map_or(n.stance, |m| m.stance),
+                g: g + c,
+                parent: None,
             };
             if lattice {
                 let k = key(&f);
@@ -516,10 +665,19 @@ fn pass(
                 }
                 best_g.insert(k, child.g);
             }
-            let hc = pr.h(&child);
+            let hc = h_known.unwrap_or_else(|| pr.h(&child));
             if child.g + hc >= incumbent {
                 continue;
             }
+            for mut m in inner {
+                m.parent = Some(parent);
+                nodes.push(m);
+                parent = nodes.len() - 1;
+            }
+            let child = Node {
+                parent: Some(parent),
+                ..child
+            };
             order += 1;
             nodes.push(child);
             open.push(Entry {
@@ -681,6 +839,8 @@ pub fn plan_from(
         field,
         lattice,
         deadline: t1 + s.budget,
+        scouting: Cell::new(false),
+        bearings: RefCell::new(vec![f64::NAN; world.grid.nx * world.grid.ny]),
     };
     let root = Node {
         stance,
@@ -703,7 +863,21 @@ pub fn plan_from(
     let mut why = "no foothold sequence reaches the goal";
     for &(w, cells, bounded) in &passes {
         let cap = incumbent.as_ref().map_or(f64::INFINITY, |b| b.0);
-        let (end, nodes) = pass(&pr, root, w, cells, cap, &mut stats, &mut best_partial);
+        // The scouting pass also walks straight in strides, and its heuristic charges the
+        // turn towards the 2-D way.
+        let scouting = lattice && !bounded;
+        pr.scouting.set(scouting);
+        let strides = if scouting { s.strides } else { 1 };
+        let (end, nodes) = pass(
+            &pr,
+            root,
+            w,
+            cells,
+            strides,
+            cap,
+            &mut stats,
+            &mut best_partial,
+        );
         let w = if bounded { w } else { f64::INFINITY };
         match end {
             Pass::Found(e) => {
@@ -797,6 +971,8 @@ pub fn successors(
         field: None,
         lattice: true,
         deadline: Instant::now(),
+        scouting: Cell::new(false),
+        bearings: RefCell::new(Vec::new()),
     };
     let n = Node {
         stance,
@@ -805,6 +981,9 @@ pub fn successors(
         parent: None,
     };
     pr.successors(&n, &mut Stats::default())
+        .into_iter()
+        .map(|(f, c, _)| (f, c))
+        .collect()
 }
 
 /// The energy of the step that places `swing` from `stance`.

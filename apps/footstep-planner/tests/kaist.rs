@@ -220,6 +220,34 @@ fn b10_gazelle() {
 }
 
 #[test]
+fn the_scouting_pass_walks_straight_in_strides() {
+    // B10-B1: the thesis's tree reaches the goal 14 steps away in 15 expansions. Step by
+    // step no search can need fewer than 14; the scouting pass's walks (up to 4 straight
+    // steps as one successor) need at most half of 15.
+    let (t, _) = run("kaist-b10-b1", Mode::Thesis);
+    let (i, w) = run("kaist-b10-b1", Mode::Improved);
+    let first = i.stats.first_plan_expansions.unwrap();
+    assert!(
+        2 * first <= t.stats.expansions,
+        "{first} vs {}",
+        t.stats.expansions
+    );
+    let (one, _) = run_with("kaist-b10-b1", Mode::Improved, |s| s.strides = 1);
+    assert!(one.stats.first_plan_expansions.unwrap() >= 14);
+    // The scouting pass's own plan: every foot and step feasible, the feet alternating.
+    for scene in ["kaist-b10-b1", "kaist-b5-a", "kaist-b7"] {
+        let (p, w2) = run_with(scene, Mode::Improved, |s| s.weights.clear());
+        assert_eq!(p.status, Status::Ok, "{scene}");
+        feasible(&p, &w2);
+        for s in p.steps.windows(2) {
+            assert_ne!(s[0].left, s[1].left, "{scene}: feet alternate");
+        }
+    }
+    assert_eq!(i.bound, Some(1.0));
+    feasible(&i, &w);
+}
+
+#[test]
 fn identical_inputs_give_identical_plans() {
     for mode in [Mode::Thesis, Mode::Improved] {
         let (a, _) = run("kaist-b2-p045", mode);
