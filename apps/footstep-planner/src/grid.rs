@@ -380,9 +380,9 @@ impl Grid {
         }
     }
 
-    /// The cells from `from` down a distance field, each the lowest of the cells the 16 moves
-    /// reach (the most progress per move), to its zero or until the distance has dropped by
-    /// `drop`; empty when `from` is off the map or cannot reach the zero.
+    /// The cells from `from` down a distance field, each the steepest of the 16 moves (the
+    /// largest drop per metre), to its zero or until the distance has dropped by `drop`; empty
+    /// when `from` is off the map or cannot reach the zero.
     pub fn way(&self, field: &[f64], from: V2, drop: f64) -> Vec<usize> {
         let Some((i, j)) = self.cell(from) else {
             return Vec::new();
@@ -395,14 +395,15 @@ impl Grid {
         let top = field[k];
         while field[k] > 0.0 && top - field[k] < drop {
             let (ci, cj) = ((k % self.nx) as i64, (k / self.nx) as i64);
-            // The lowest of the 16 moves' cells: the largest drop per move.
-            let mut next = (field[k], k);
+            // The steepest of the 16 moves: the largest drop per metre.
+            let mut next = (0.0, k);
             for &(a, b) in &MOVES {
                 let (x, y) = (ci + a, cj + b);
                 if x >= 0 && y >= 0 && (x as usize) < self.nx && (y as usize) < self.ny {
                     let nk = y as usize * self.nx + x as usize;
-                    if field[nk] < next.0 {
-                        next = (field[nk], nk);
+                    let slope = (field[k] - field[nk]) / ((a * a + b * b) as f64).sqrt();
+                    if slope > next.0 {
+                        next = (slope, nk);
                     }
                 }
             }
@@ -512,5 +513,26 @@ mod tests {
             got >= around * 0.98 && got < around * 1.05,
             "{got} vs {around}"
         );
+        // The way down it: field moves only, each going down, round the wall to the goal, no
+        // longer than the field says.
+        let way = g.way(&d, v2(0.0, 0.0), f64::INFINITY);
+        assert_eq!(d[*way.last().unwrap()], 0.0);
+        let mut length = 0.0;
+        for w in way.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let (da, db) = (
+                (b % g.nx) as i64 - (a % g.nx) as i64,
+                (b / g.nx) as i64 - (a / g.nx) as i64,
+            );
+            assert!(MOVES.contains(&(da, db)), "{da}, {db}");
+            assert!(d[b] < d[a]);
+            assert!(g.h[b] < 0.15, "through the wall");
+            length += ((da * da + db * db) as f64).sqrt() * g.res;
+        }
+        assert!((length - got).abs() < 1e-9, "{length} vs {got}");
+        // Steepest first: out in the open it heads straight for the goal.
+        let open = g.way(&d, v2(2.5, 0.0), 0.3);
+        let (a, b) = (open[0], open[1]);
+        assert_eq!((b % g.nx, b / g.nx), (a % g.nx + 1, a / g.nx));
     }
 }

@@ -129,7 +129,8 @@ pub struct Settings {
     /// it.
     pub scout: Option<((f64, f64), f64)>,
     /// The scouting pass also offers the straight step repeated up to this many times as one
-    /// successor (a walk whose inner feet are plan steps, not search nodes); 1 for none.
+    /// successor (a walk whose inner feet are steps of the plan but are never expanded); 1 for
+    /// none.
     pub strides: usize,
 }
 
@@ -347,6 +348,9 @@ impl Problem<'_> {
         let f = self.field.as_ref()?;
         let (i, j) = g.cell(c)?;
         let k = j * g.nx + i;
+        if self.bearings.borrow().is_empty() {
+            *self.bearings.borrow_mut() = vec![f64::NAN; g.nx * g.ny];
+        }
         let known = self.bearings.borrow()[k];
         let b = if known.is_nan() {
             let from = g.centre(i, j);
@@ -622,7 +626,8 @@ fn pass(
                 let h_first = pr.h(&first);
                 // Only where the step itself goes down the heuristic (by a third as much as a
                 // walk's steps must: from feet side by side a step moves the centre half as
-                // far), or near the goal, where the heuristic is one step's floor.
+                // far, and the heuristic counts its turn and sway), or near the goal, where
+                // the heuristic is one step's floor.
                 let near = n.centre().dist(pr.goal) <= s.full_set_radius;
                 let (more, h_end) = if near || h_first <= hn - WALK_FOLLOWS / 3.0 * c {
                     pr.walk(&first, h_first, &a, strides, stats)
@@ -638,7 +643,7 @@ fn pass(
             }
         }
         for (chain, h_known) in children {
-            // The inner feet of a walk are steps of the plan, not nodes of the search.
+            // The inner feet of a walk are steps of the plan, never expanded.
             let mut parent = node;
             let mut g = n.g;
             let mut inner = Vec::new();
@@ -840,7 +845,7 @@ pub fn plan_from(
         lattice,
         deadline: t1 + s.budget,
         scouting: Cell::new(false),
-        bearings: RefCell::new(vec![f64::NAN; world.grid.nx * world.grid.ny]),
+        bearings: RefCell::new(Vec::new()),
     };
     let root = Node {
         stance,
@@ -858,7 +863,10 @@ pub fn plan_from(
     } else {
         passes.push((1.0, s.lattice, false));
     }
+    // The best partial plans by the heuristic: the scouting pass's (whose heuristic is not the
+    // others') apart.
     let mut best_partial = (f64::INFINITY, vec![stance]);
+    let mut best_scout = (f64::INFINITY, vec![stance]);
     let mut incumbent: Option<(f64, Vec<Foot>, Vec<V2>, f64)> = None;
     let mut why = "no foothold sequence reaches the goal";
     for &(w, cells, bounded) in &passes {
@@ -876,7 +884,11 @@ pub fn plan_from(
             strides,
             cap,
             &mut stats,
-            &mut best_partial,
+            if scouting {
+                &mut best_scout
+            } else {
+                &mut best_partial
+            },
         );
         let w = if bounded { w } else { f64::INFINITY };
         match end {
@@ -908,6 +920,22 @@ pub fn plan_from(
         }
     }
     stats.search = t1.elapsed();
+    // Of the two partial plans, the one whose end the fine passes' heuristic puts nearer.
+    pr.scouting.set(false);
+    let h_end = |feet: &[Foot]| match feet {
+        [.., other, stance] => pr.h(&Node {
+            stance: *stance,
+            other: *other,
+            g: 0.0,
+            parent: None,
+        }),
+        _ => f64::INFINITY,
+    };
+    if best_scout.1.len() > 1
+        && (best_partial.1.len() <= 1 || h_end(&best_scout.1) < h_end(&best_partial.1))
+    {
+        best_partial = best_scout;
+    }
     let admissible = match s.heuristic {
         Heuristic::Zero | Heuristic::EnergyBound => true,
         Heuristic::Dijkstra2d => !climbs,

@@ -21,12 +21,15 @@
 //!   way per homotopy class, the cheapest by Eq. 4.17) coupled as heuristic and heading
 //!   (couplings 1 and 3); at the budget it falls back to stepping in place.
 //! - improved ([`Mode::Improved`]): a scouting pass on a coarse lattice (0.2 m, 15°, weight
-//!   2), then duplicate detection on a lattice (0.05 m, 5°, side), the
-//!   2-D pre-planner (a distance field over the tall obstacles, grown by a margin) coupled as
-//!   heuristic (the way's length: coupling 1) and as desired heading (the way's direction:
-//!   coupling 3), optionally as a corridor (coupling 2: off by default, it made no plan
-//!   faster on the shipped scenes), an optional horizon (the thesis's 7 steps), and the
-//!   deadline: at the budget the best partial plan, or steps in place when none gets nearer.
+//!   2), then duplicate detection on a lattice (0.05 m, 5°, side; within 0.5 m of the goal
+//!   every pass uses it), the 2-D pre-planner (a distance field over the tall obstacles, grown
+//!   by a margin) coupled as heuristic (the way's length: coupling 1) and as desired heading
+//!   (the way's direction: coupling 3; where there is room, the way of a field grown by the
+//!   wider heading margin), optionally as a corridor (coupling 2: off by default, it made no
+//!   plan faster on the shipped scenes), a step straight onto the goal pose when one step
+//!   reaches it, an optional horizon (the thesis's 7 steps; the first plan found stands), and
+//!   the deadline: at the budget the best partial plan, or steps in place when none gets
+//!   nearer.
 
 use std::collections::{BinaryHeap, HashMap};
 use std::time::{Duration, Instant};
@@ -617,10 +620,12 @@ impl Problem<'_> {
         else {
             return d;
         };
-        // Wide of the obstacles where there is room, else along the heuristic's way.
-        let roomy = g
-            .cell(m)
-            .is_some_and(|(i, j)| heading[j * g.nx + i].is_finite());
+        // Wide of the obstacles where there is room and that way is not much longer, else
+        // along the heuristic's way.
+        let roomy = g.cell(m).is_some_and(|(i, j)| {
+            let k = j * g.nx + i;
+            heading[k] <= dist[k] * 1.25 + 0.25
+        });
         match g.descent(if roomy { heading } else { dist }, m, 0.6) {
             Some(to) => wrap((to - m).angle() - f.yaw).clamp(-0.2, 0.2),
             None => d,
@@ -817,11 +822,16 @@ pub fn plan_from(
                     && t.solid.footprint_distance(p) < grow
             })
         };
-        let wide = s.heading_margin.max(s.margin);
-        g.paint(|p| near(p, wide), |_| 1.0);
+        let wide = s.couple_heading && s.heading_margin > s.margin;
+        if wide {
+            g.paint(|p| near(p, s.heading_margin), |_| 1.0);
+        }
         g.paint(|p| near(p, s.margin), |_| 2.0);
-        let heading = g.distance_field(goal, |h| h == 0.0);
         let d = g.distance_field(goal, |h| h < 2.0);
+        let heading = match wide {
+            true => g.distance_field(goal, |h| h == 0.0),
+            false => d.clone(),
+        };
         // Coupling 2: the distance from the way the robot's centre would take.
         // (None when the centre has no way: the corridor is then off.)
         let corridor = s.corridor.and_then(|_| {

@@ -84,6 +84,25 @@ fn b2_complex_with_85_and_34_suggestions() {
 }
 
 #[test]
+fn b2_first_plan_comes_quickly() {
+    // The first plan once took 532 expansions circling the goal: the coarse pass could not
+    // meet the tolerance. The fine lattice near the goal and the step onto the goal fixed it.
+    let (p, w) = run_with("lola-b2-complex", Mode::Improved, |s| s.weights.clear());
+    assert_eq!(p.status, Status::Ok, "{}", p.detail);
+    valid(&p, &w);
+    let first = p.stats.first_plan_expansions.unwrap();
+    assert!(first <= 100, "{first}");
+}
+
+#[test]
+fn a_horizon_beyond_the_goal_gives_the_whole_plan() {
+    let (p, w) = run_with("lola-b1-simple", Mode::Improved, |s| s.horizon = Some(40));
+    assert_eq!(p.status, Status::Ok, "{}", p.detail);
+    assert!(p.steps.len() - 2 < 40);
+    valid(&p, &w);
+}
+
+#[test]
 fn coupling_2_keeps_the_steps_in_the_corridor() {
     // The stairs' edges are not obstacles to the pre-planner: with the corridor on, the way
     // runs up the stairs and the plan follows it (it once found no way at all).
