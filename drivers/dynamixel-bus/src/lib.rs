@@ -77,6 +77,8 @@ pub struct BusStats {
     pub split: SplitStats,
     /// Answers from servos not asked (late answers to an earlier try, or noise).
     pub unexpected: u64,
+    /// Bytes dropped after a transaction that gave up, before the next (late answers).
+    pub stale_bytes: u64,
 }
 
 /// One servo's answer in a multi-servo read.
@@ -91,6 +93,15 @@ pub struct Bus<T: Transport> {
     stats: BusStats,
     /// Tries each servo did not answer in time, by id.
     missed: [u32; 256],
+    /// The last transaction gave up on an answer, which may still come: its tries.
+    stale: Option<Tries>,
+}
+
+/// How long a transaction's tries took.
+#[derive(Debug, Clone, Copy)]
+struct Tries {
+    per_try: Duration,
+    tries: u32,
 }
 
 impl<T: Transport> std::fmt::Debug for Bus<T> {
@@ -131,6 +142,7 @@ impl<T: Transport> Bus<T> {
             s2: v2::Splitter::new(),
             stats: BusStats::default(),
             missed: [0; 256],
+            stale: None,
         }
     }
 
@@ -235,6 +247,24 @@ impl<T: Transport> Bus<T> {
         let budget = self.budget(bytes.len(), in_bytes, expect.len());
         let mut got: Vec<Option<Status>> = vec![None; expect.len()];
         let mut tries = 0;
+        // What arrives late from the last transaction is not taken for this one: its tries'
+        // answers (one try's time apart) are let in and dropped until the line has been quiet
+        // for a try's time and the margin, at most as long as all its tries took.
+        if let Some(took) = self.stale.take() {
+            self.forget();
+            let window = took.per_try + self.cfg.margin;
+            let give_up = Instant::now() + took.per_try * took.tries + self.cfg.margin;
+            let mut buf = [0u8; 512];
+            loop {
+                let quiet = (Instant::now() + window).min(give_up);
+                match self.line.read_until(&mut buf, quiet) {
+                    Ok(n) if n > 0 && Instant::now() < give_up => {
+                        self.stats.stale_bytes += n as u64;
+                    }
+                    _ => break,
+                }
+            }
+        }
         loop {
             tries += 1;
             self.stats.sent += 1;
@@ -290,15 +320,14 @@ impl<T: Transport> Bus<T> {
             }
             self.stats.timeouts += 1;
             self.stats.retries += 1;
-            // Whatever arrives late from this try must not be taken for the next.
-            let _ = self.line.discard_input();
-            match self.cfg.protocol {
-                Protocol::V1 => self.s1.clear(),
-                Protocol::V2 => self.s2.clear(),
-            }
+            self.forget();
         }
         if got.iter().any(Option::is_none) {
             self.stats.timeouts += 1;
+            self.stale = Some(Tries {
+                per_try: budget,
+                tries,
+            });
         }
         Ok(got
             .into_iter()
@@ -312,6 +341,15 @@ impl<T: Transport> Bus<T> {
                 })
             })
             .collect())
+    }
+
+    /// Drops whatever the line and the splitter hold.
+    fn forget(&mut self) {
+        let _ = self.line.discard_input();
+        match self.cfg.protocol {
+            Protocol::V1 => self.s1.clear(),
+            Protocol::V2 => self.s2.clear(),
+        }
     }
 
     fn one(&mut self, id: u8, ins: &Instruction, params: usize) -> Result<Status, BusError> {

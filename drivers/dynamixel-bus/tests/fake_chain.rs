@@ -168,6 +168,26 @@ fn missing_late_and_overheating_servos() {
         [1],
         "a stale answer was taken"
     );
+    // Nor for the next read of the same servo and size, when every try's answer comes after
+    // the transaction gave up (the tries take about 80 ms here), even while the next starts.
+    std::thread::sleep(Duration::from_millis(200));
+    r.bus.write(2, 108, &[77, 0, 0, 0]).unwrap();
+    r.levers.set(
+        2,
+        Fault {
+            late: Duration::from_millis(100),
+            ..Fault::default()
+        },
+    );
+    let got = r.bus.read(2, 132, 4);
+    assert!(got.is_err(), "{got:?}");
+    r.levers.clear(2);
+    std::thread::sleep(Duration::from_millis(40));
+    assert_eq!(
+        r.bus.read(2, 108, 4).unwrap(),
+        [77, 0, 0, 0],
+        "a stale answer was taken"
+    );
     // Overheating: the alert bit on every status, the hardware error status says why, and
     // the shutdown turned the torque off.
     r.bus.write(4, 64, &[1]).unwrap();
