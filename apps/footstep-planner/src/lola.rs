@@ -21,8 +21,7 @@
 //!   way per homotopy class, the cheapest by Eq. 4.17) coupled as heuristic and heading
 //!   (couplings 1 and 3); at the budget it falls back to stepping in place.
 //! - improved ([`Mode::Improved`]): a scouting pass on a coarse lattice (0.2 m, 15°, weight
-//!   2), then duplicate detection on a lattice (0.05 m, 5°, side; within 0.5 m of the goal
-//!   every pass uses it), the 2-D pre-planner (a distance field over the tall obstacles, grown
+//!   2), then duplicate detection on a lattice (0.05 m, 5°, side), the 2-D pre-planner (a distance field over the tall obstacles, grown
 //!   by a margin) coupled as heuristic (the way's length: coupling 1) and as desired heading
 //!   (the way's direction: coupling 3; where there is room, the way of a field grown by the
 //!   wider heading margin), optionally as a corridor (coupling 2: off by default, it made no
@@ -545,9 +544,8 @@ pub fn mid(f: &Foot, width: f64) -> V2 {
     f.p + v2(-f.yaw.sin(), f.yaw.cos()) * (side * width / 2.0)
 }
 
-/// Within this distance of the goal (m) every pass detects duplicates on the planner's own
-/// lattice.
-const GOAL_FINE: f64 = 0.5;
+/// Within this distance of the goal (m) a step straight onto the goal pose is tried.
+const GOAL_STEP: f64 = 0.5;
 
 struct Problem<'a> {
     world: &'a World,
@@ -643,7 +641,7 @@ impl Problem<'_> {
             }
         }
         // The step onto the goal, when one step can reach it (improved mode).
-        if self.snap && mid(&n.stance, s.robot.width).dist(self.goal) < GOAL_FINE {
+        if self.snap && mid(&n.stance, s.robot.width).dist(self.goal) < GOAL_STEP {
             let (left, right) = Foot::standing(self.goal, self.goal_yaw, s.robot.width);
             let to = if n.stance.left { right } else { left };
             if let Some(step) = self.step(n, unplace(&n.stance, &to, s.robot.width), phi0, stats) {
@@ -1003,21 +1001,16 @@ fn pass(
         order,
         node: 0,
     }]);
-    // Near the goal the planner's own lattice, so that a coarse pass can still meet the
-    // tolerance (the key's last field tells the two apart).
     let key = |f: &Foot| {
         let m = mid(f, r.width);
-        let near = m.dist(goal) < GOAL_FINE;
-        let c = if near { s.lattice } else { cells };
         (
-            (m.x / c.0).round() as i64,
-            (m.y / c.0).round() as i64,
-            (wrap(f.yaw) / c.1.to_radians()).round() as i64,
+            (m.x / cells.0).round() as i64,
+            (m.y / cells.0).round() as i64,
+            (wrap(f.yaw) / cells.1.to_radians()).round() as i64,
             f.left,
-            near,
         )
     };
-    let mut best_g: HashMap<(i64, i64, i64, bool, bool), f64> = HashMap::new();
+    let mut best_g: HashMap<(i64, i64, i64, bool), f64> = HashMap::new();
     let mut best_here = (best.0, 0usize);
     let finish = |nodes: Vec<Node>, best_here: (f64, usize), best: &mut (f64, Vec<Node>, usize)| {
         if best_here.1 != 0 && best_here.0 < best.0 {

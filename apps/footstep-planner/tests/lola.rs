@@ -86,7 +86,7 @@ fn b2_complex_with_85_and_34_suggestions() {
 #[test]
 fn b2_first_plan_comes_quickly() {
     // The first plan once took 532 expansions circling the goal: the coarse pass could not
-    // meet the tolerance. The fine lattice near the goal and the step onto the goal fixed it.
+    // meet the tolerance. The step onto the goal fixed it.
     let (p, w) = run_with("lola-b2-complex", Mode::Improved, |s| s.weights.clear());
     assert_eq!(p.status, Status::Ok, "{}", p.detail);
     valid(&p, &w);
