@@ -32,7 +32,7 @@ use std::time::{Duration, Instant};
 use crate::geom::{v2, wrap, V2};
 use crate::grid::{Grid, GridError, GRID_DETOUR};
 use crate::kaist::{self, Action, CostParams, Subset};
-use crate::plan::{Entry, Foot, Plan, Stats, Status};
+use crate::plan::{anytime_passes, Entry, Foot, Plan, Stats, Status};
 use crate::scene::Scene;
 use crate::steps::FOOT;
 
@@ -348,21 +348,17 @@ impl Problem<'_> {
         let f = self.field.as_ref()?;
         let (i, j) = g.cell(c)?;
         let k = j * g.nx + i;
-        if self.bearings.borrow().is_empty() {
-            *self.bearings.borrow_mut() = vec![f64::NAN; g.nx * g.ny];
+        let mut memo = self.bearings.borrow_mut();
+        if memo.is_empty() {
+            *memo = vec![f64::NAN; g.nx * g.ny];
         }
-        let known = self.bearings.borrow()[k];
-        let b = if known.is_nan() {
+        if memo[k].is_nan() {
             let from = g.centre(i, j);
-            let b = g
+            memo[k] = g
                 .descent(f, from, 0.5)
                 .map_or(f64::INFINITY, |to| (to - from).angle());
-            self.bearings.borrow_mut()[k] = b;
-            b
-        } else {
-            known
-        };
-        b.is_finite().then_some(b)
+        }
+        memo[k].is_finite().then_some(memo[k])
     }
 
     /// A lower bound of the distance from the stance foot of `n` to the goal along any way
@@ -459,25 +455,27 @@ impl Problem<'_> {
                 }
                 tried.push(a.subset);
             }
-            let mut f = apply(&n.stance, a);
             stats.generated += 1;
-            stats.collision_queries += 1;
-            let Some(z) = self.world.foothold(&f, n.stance.z, &s.feasibility) else {
+            let Some(f) = self.land(&n.stance, &n.other, apply(&n.stance, a), stats) else {
                 continue;
             };
-            f.z = z;
-            if !self
-                .world
-                .body_clear(&n.stance, n.other.p, f.p, &s.feasibility)
-            {
-                continue;
-            }
             out.push((f, a.energy_mg(p) * p.mg(), *a));
             if !full {
                 taken.push(a.subset);
             }
         }
         out
+    }
+
+    /// The foot `f` (placed from `stance`, the other foot at `other`) at the height it rests
+    /// on, if it may stand there and the step keeps the body clear (R-F1, R-F2).
+    fn land(&self, stance: &Foot, other: &Foot, mut f: Foot, stats: &mut Stats) -> Option<Foot> {
+        let feas = &self.s.feasibility;
+        stats.collision_queries += 1;
+        f.z = self.world.foothold(&f, stance.z, feas)?;
+        self.world
+            .body_clear(stance, other.p, f.p, feas)
+            .then_some(f)
     }
 
     /// The straight step `a` (taken from `n` to `first`) repeated while the robot can and
@@ -497,7 +495,7 @@ impl Problem<'_> {
         let (mut at, mut h_at) = (*first, h_first);
         while out.len() + 1 < strides && at.centre().dist(self.goal) >= s.tolerance {
             // Cheap tests first: nearer the goal, down the heuristic; then the ground.
-            let mut next = Node {
+            let next = Node {
                 stance: apply(&at.stance, a),
                 other: at.stance,
                 g: 0.0,
@@ -512,22 +510,11 @@ impl Problem<'_> {
             if !near && h_next > h_at - WALK_FOLLOWS * c {
                 break;
             }
-            stats.collision_queries += 1;
-            let Some(z) = self
-                .world
-                .foothold(&next.stance, at.stance.z, &s.feasibility)
-            else {
+            let Some(f) = self.land(&at.stance, &at.other, next.stance, stats) else {
                 break;
             };
-            next.stance.z = z;
-            if !self
-                .world
-                .body_clear(&at.stance, at.other.p, next.stance.p, &s.feasibility)
-            {
-                break;
-            }
-            out.push((next.stance, c));
-            (at, h_at) = (next, h_next);
+            out.push((f, c));
+            (at, h_at) = (Node { stance: f, ..next }, h_next);
         }
         (out, h_at)
     }
@@ -853,16 +840,7 @@ pub fn plan_from(
         g: 0.0,
         parent: None,
     };
-    // The passes: (weight, lattice, whether its result is bounded on the planner's lattice).
-    let mut passes: Vec<(f64, (f64, f64), bool)> = Vec::new();
-    if lattice {
-        if let Some((coarse, w)) = s.scout {
-            passes.push((w, coarse, false));
-        }
-        passes.extend(s.weights.iter().map(|&w| (w, s.lattice, true)));
-    } else {
-        passes.push((1.0, s.lattice, false));
-    }
+    let passes = anytime_passes(lattice, s.scout, &s.weights, s.lattice);
     // The best partial plans by the heuristic: the scouting pass's (whose heuristic is not the
     // others') apart.
     let mut best_partial = (f64::INFINITY, vec![stance]);

@@ -21,14 +21,14 @@
 //!   way per homotopy class, the cheapest by Eq. 4.17) coupled as heuristic and heading
 //!   (couplings 1 and 3); at the budget it falls back to stepping in place.
 //! - improved ([`Mode::Improved`]): a scouting pass on a coarse lattice (0.2 m, 15°, weight
-//!   2), then duplicate detection on a lattice (0.05 m, 5°, side), the 2-D pre-planner (a distance field over the tall obstacles, grown
-//!   by a margin) coupled as heuristic (the way's length: coupling 1) and as desired heading
-//!   (the way's direction: coupling 3; where there is room, the way of a field grown by the
-//!   wider heading margin), optionally as a corridor (coupling 2: off by default, it made no
-//!   plan faster on the shipped scenes), a step straight onto the goal pose when one step
-//!   reaches it, an optional horizon (the thesis's 7 steps; the first plan found stands), and
-//!   the deadline: at the budget the best partial plan, or steps in place when none gets
-//!   nearer.
+//!   2), then duplicate detection on a lattice (0.05 m, 5°, side), the 2-D pre-planner (a
+//!   distance field over the tall obstacles, grown by a margin) coupled as heuristic (the
+//!   way's length: coupling 1) and as desired heading (the way's direction: coupling 3; where
+//!   there is room, the way of a field grown by the wider heading margin), optionally as a
+//!   corridor (coupling 2: off by default, it made no plan faster on the shipped scenes), a
+//!   step straight onto the goal pose when one step reaches it, an optional horizon (the
+//!   thesis's 7 steps; the first plan found stands), and the deadline: at the budget the best
+//!   partial plan, or steps in place when none gets nearer.
 
 use std::collections::{BinaryHeap, HashMap};
 use std::time::{Duration, Instant};
@@ -37,7 +37,7 @@ use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 
 use crate::geom::{convex_overlap, foot_cspace, rectangle, v2, wrap, V2};
 use crate::grid::{Grid, GRID_DETOUR};
-use crate::plan::{Entry, Foot, Plan, Stats, Status};
+use crate::plan::{anytime_passes, Entry, Foot, Plan, Stats, Status};
 use crate::preplan::{self, preplan, Reduced, Way};
 use crate::scene::{Obstacle, Scene};
 use crate::ssv::{overlaps, Solid, P3};
@@ -564,8 +564,9 @@ struct Field {
     grid: Grid,
     /// Distances to the goal around the tall obstacles grown by the margin (the heuristic).
     dist: Vec<f64>,
-    /// The same around them grown by the heading margin (the desired heading), where finite.
-    heading: Vec<f64>,
+    /// The same around them grown by the heading margin (the desired heading where there is
+    /// room), when that margin is wider and the heading is coupled.
+    heading: Option<Vec<f64>>,
     /// Distances from the centre's way (the corridor), if asked.
     corridor: Option<Vec<f64>>,
 }
@@ -620,11 +621,15 @@ impl Problem<'_> {
         };
         // Wide of the obstacles where there is room and that way is not much longer, else
         // along the heuristic's way.
-        let roomy = g.cell(m).is_some_and(|(i, j)| {
-            let k = j * g.nx + i;
-            heading[k] <= dist[k] * 1.25 + 0.25
-        });
-        match g.descent(if roomy { heading } else { dist }, m, 0.6) {
+        let field = match (heading, g.cell(m)) {
+            (Some(wide), Some((i, j)))
+                if wide[j * g.nx + i] <= dist[j * g.nx + i] * 1.25 + 0.25 =>
+            {
+                wide
+            }
+            _ => dist,
+        };
+        match g.descent(field, m, 0.6) {
             Some(to) => wrap((to - m).angle() - f.yaw).clamp(-0.2, 0.2),
             None => d,
         }
@@ -826,10 +831,7 @@ pub fn plan_from(
         }
         g.paint(|p| near(p, s.margin), |_| 2.0);
         let d = g.distance_field(goal, |h| h < 2.0);
-        let heading = match wide {
-            true => g.distance_field(goal, |h| h == 0.0),
-            false => d.clone(),
-        };
+        let heading = wide.then(|| g.distance_field(goal, |h| h == 0.0));
         // Coupling 2: the distance from the way the robot's centre would take.
         // (None when the centre has no way: the corridor is then off.)
         let corridor = s.corridor.and_then(|_| {
@@ -864,16 +866,7 @@ pub fn plan_from(
         depth: 0,
         parent: None,
     };
-    // The passes: (weight, lattice, whether its result is bounded on the planner's lattice).
-    let mut passes: Vec<(f64, (f64, f64), bool)> = Vec::new();
-    if lattice {
-        if let Some((coarse, w)) = s.scout {
-            passes.push((w, coarse, false));
-        }
-        passes.extend(s.weights.iter().map(|&w| (w, s.lattice, true)));
-    } else {
-        passes.push((1.0, s.lattice, false));
-    }
+    let mut passes = anytime_passes(lattice, s.scout, &s.weights, s.lattice);
     // Towards a horizon, cost alone does not rank plans: the first plan found stands, the
     // scouting pass's or, when that runs dry, the first fine pass's.
     if s.horizon.is_some() {

@@ -122,6 +122,26 @@ impl Plan {
     }
 }
 
+/// The passes of a lattice planner, each (weight, lattice cell: position m and yaw degrees,
+/// whether its plan is bounded by the weight on the planner's lattice): with duplicate
+/// detection (`lattice`), the scouting pass if any (unbounded) and then `weights` on `cells`;
+/// without, one tree pass of weight 1.
+pub fn anytime_passes(
+    lattice: bool,
+    scout: Option<((f64, f64), f64)>,
+    weights: &[f64],
+    cells: (f64, f64),
+) -> Vec<(f64, (f64, f64), bool)> {
+    if !lattice {
+        return vec![(1.0, cells, false)];
+    }
+    scout
+        .map(|(coarse, w)| (w, coarse, false))
+        .into_iter()
+        .chain(weights.iter().map(|&w| (w, cells, true)))
+        .collect()
+}
+
 /// An entry of a least-cost-first `BinaryHeap`: a cost and an index, least cost first, then
 /// least index (deterministic).
 #[derive(Debug, Clone, Copy, PartialEq)]
