@@ -311,3 +311,11 @@ pub(crate) fn le16(b: &[u8]) -> u16 {
 pub fn wire_time(bytes: usize, baud: u32) -> std::time::Duration {
     std::time::Duration::from_nanos((bytes as u64 * 10 * 1_000_000_000) / baud.max(1) as u64)
 }
+
+/// Bytes from hex pairs separated by spaces, as the manuals print packets (tests).
+#[cfg(test)]
+fn hex(s: &str) -> Vec<u8> {
+    s.split_whitespace()
+        .map(|b| u8::from_str_radix(b, 16).unwrap())
+        .collect()
+}

@@ -277,13 +277,8 @@ pub type Splitter = crate::Splitter<Framing1>;
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::hex;
     use crate::Split;
-
-    fn hex(s: &str) -> Vec<u8> {
-        s.split_whitespace()
-            .map(|b| u8::from_str_radix(b, 16).unwrap())
-            .collect()
-    }
 
     #[test]
     fn manual_examples() {

@@ -494,12 +494,7 @@ pub type Splitter = crate::Splitter<Framing2>;
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn hex(s: &str) -> Vec<u8> {
-        s.split_whitespace()
-            .map(|b| u8::from_str_radix(b, 16).unwrap())
-            .collect()
-    }
+    use crate::hex;
 
     #[test]
     fn crc_check_value_and_ping() {
