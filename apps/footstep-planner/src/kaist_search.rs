@@ -11,7 +11,7 @@
 //!   side) and a closed set, the same actions, an admissible energy bound
 //!   ([`kaist::h_improved`]) also taken along the 2-D way around tall cells
 //!   ([`Heuristic::Dijkstra2d`]), and an anytime schedule: a scouting pass of weight 2 on a
-//!   coarse lattice (half the longest step, 15°) for a first plan at once (its heuristic also
+//!   coarse lattice (half the longest step, 22.5°) for a first plan at once (its heuristic also
 //!   charges the turn towards the 2-D way, and it walks straight in strides of up to four
 //!   steps where the heuristic sees the way clear: [`Settings::strides`]), then weighted A* with
 //!   a decreasing weight (1.5, 1.2, 1) on the fine one, each pass pruned by the best plan so
@@ -138,7 +138,7 @@ impl Settings {
     /// The defaults for `mode` with `cost` (notes C.1: tolerance 0.1 m, full set within 0.6 m;
     /// the thesis's cap of 2000 and heuristic; in improved mode 200 ms, 200 000 expansions,
     /// the 2-D heuristic, a scouting pass of weight 2 on a lattice of half the longest step and
-    /// 15°, then the weights 1.5, 1.2, 1 on a lattice of 0.05 m and 5°).
+    /// 22.5°, then the weights 1.5, 1.2, 1 on a lattice of 0.05 m and 5°).
     pub fn new(mode: Mode, cost: CostParams) -> Settings {
         let thesis = mode == Mode::Thesis;
         Settings {
@@ -160,7 +160,7 @@ impl Settings {
                 vec![1.5, 1.2, 1.0]
             },
             lattice: (0.05, 5.0),
-            scout: (!thesis).then_some(((cost.l_max / 2.0, 15.0), 2.0)),
+            scout: (!thesis).then_some(((cost.l_max / 2.0, 22.5), 2.0)),
             strides: if thesis { 1 } else { 4 },
         }
     }
