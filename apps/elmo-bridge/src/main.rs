@@ -37,12 +37,12 @@ struct Cli {
 
 type Sim = (Arc<AtomicBool>, Vec<JoinHandle<FakeElmo>>);
 
-fn open_bus(
+fn open_bus<'a>(
     cfg: &BridgeConfig,
-    lcm_url: &str,
-) -> anyhow::Result<(Box<dyn CanBus + Send>, Option<Sim>)> {
+    lcm: &'a lcm::Lcm,
+) -> anyhow::Result<(Box<dyn CanBus + 'a>, Option<Sim>)> {
     if let Some(name) = cfg.bus.strip_prefix("lcm:") {
-        let bus = stride_canbus::lcm::LcmBus::new(lcm_url, name)
+        let bus = stride_can_lcm::LcmBus::new(lcm, name)
             .with_context(|| format!("joining CAN bus {name} over LCM"))?;
         return Ok((Box::new(bus), None));
     }
@@ -81,7 +81,7 @@ fn main() -> anyhow::Result<()> {
     cfg.check().map_err(anyhow::Error::msg)?;
     let node = Node::start("stride-elmo-bridge", &cli.node)?;
     node.set_health(NodeStatusT::STATE_STARTING, "bringing up the drives");
-    let (bus, sim) = open_bus(&cfg, node.lcm().url())?;
+    let (bus, sim) = open_bus(&cfg, node.lcm())?;
     let master_cfg = MasterConfig {
         motion: cfg.motion().map_err(anyhow::Error::msg)?,
         ..Default::default()

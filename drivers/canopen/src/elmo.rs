@@ -64,7 +64,10 @@ impl Command {
 
     /// The RPDO2 frame to `node` (0x300 + node).
     pub fn encode(&self, node: NodeId) -> Result<CanFrame, FrameError> {
-        CanFrame::standard(CobId::of(Function::Rpdo(2), node).raw(), &self.bytes()?)
+        Ok(CanFrame::standard(
+            CobId::of(Function::Rpdo(2), node).raw(),
+            &self.bytes()?,
+        )?)
     }
 
     /// Reads a command (as a drive does).

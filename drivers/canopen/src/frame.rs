@@ -1,6 +1,7 @@
-//! Classic CAN frames and the CiA 301 predefined connection set.
+//! The CiA 301 predefined connection set: node ids, functions, COB-IDs; the frame itself is
+//! [`stride_can`]'s.
 
-use embedded_can::{ExtendedId, Id, StandardId};
+pub use stride_can::CanFrame;
 
 /// Why a frame could not be built or understood.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -27,148 +28,15 @@ pub enum FrameError {
     Unexpected(&'static str),
 }
 
-/// A classic CAN frame: identifier, up to 8 data bytes, remote flag.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct CanFrame {
-    id: Id,
-    rtr: bool,
-    len: u8,
-    data: [u8; 8],
-}
-
-impl CanFrame {
-    /// A data frame with a standard (11-bit) identifier.
-    pub fn standard(id: u16, data: &[u8]) -> Result<CanFrame, FrameError> {
-        let sid = StandardId::new(id).ok_or(FrameError::BadId(id as u32))?;
-        Self::data_frame(Id::Standard(sid), data)
-    }
-
-    /// A data frame with an extended (29-bit) identifier.
-    pub fn extended(id: u32, data: &[u8]) -> Result<CanFrame, FrameError> {
-        let eid = ExtendedId::new(id).ok_or(FrameError::BadId(id))?;
-        Self::data_frame(Id::Extended(eid), data)
-    }
-
-    /// A data frame with any identifier.
-    pub fn data_frame(id: Id, data: &[u8]) -> Result<CanFrame, FrameError> {
-        if data.len() > 8 {
-            return Err(FrameError::TooLong(data.len()));
+impl From<stride_can::FrameError> for FrameError {
+    fn from(e: stride_can::FrameError) -> FrameError {
+        match e {
+            stride_can::FrameError::TooLong(n) => FrameError::TooLong(n),
+            stride_can::FrameError::BadId(id) => FrameError::BadId(id),
+            stride_can::FrameError::Short { expected, found } => {
+                FrameError::Short { expected, found }
+            }
         }
-        let mut d = [0u8; 8];
-        d[..data.len()].copy_from_slice(data);
-        Ok(CanFrame {
-            id,
-            rtr: false,
-            len: data.len() as u8,
-            data: d,
-        })
-    }
-
-    /// A remote (RTR) frame asking for `dlc` bytes.
-    pub fn remote(id: Id, dlc: u8) -> Result<CanFrame, FrameError> {
-        if dlc > 8 {
-            return Err(FrameError::TooLong(dlc as usize));
-        }
-        Ok(CanFrame {
-            id,
-            rtr: true,
-            len: dlc,
-            data: [0; 8],
-        })
-    }
-
-    /// The identifier.
-    pub fn id(&self) -> Id {
-        self.id
-    }
-
-    /// The identifier as a number (11 or 29 bits).
-    pub fn raw_id(&self) -> u32 {
-        match self.id {
-            Id::Standard(s) => s.as_raw() as u32,
-            Id::Extended(e) => e.as_raw(),
-        }
-    }
-
-    /// True for a 29-bit identifier.
-    pub fn is_extended(&self) -> bool {
-        matches!(self.id, Id::Extended(_))
-    }
-
-    /// True for a remote frame.
-    pub fn is_remote(&self) -> bool {
-        self.rtr
-    }
-
-    /// Data length code.
-    pub fn dlc(&self) -> usize {
-        self.len as usize
-    }
-
-    /// The data bytes (empty for remote frames).
-    pub fn data(&self) -> &[u8] {
-        if self.rtr {
-            &[]
-        } else {
-            &self.data[..self.len as usize]
-        }
-    }
-
-    /// The data, checked to be at least `n` bytes long.
-    pub fn data_at_least(&self, n: usize) -> Result<&[u8], FrameError> {
-        let d = self.data();
-        if d.len() < n {
-            Err(FrameError::Short {
-                expected: n,
-                found: d.len(),
-            })
-        } else {
-            Ok(d)
-        }
-    }
-
-    /// Bits this frame occupies on the wire at most (with worst-case bit stuffing and the
-    /// 3-bit interframe space): 55 + 10 per data byte for standard frames, 80 + 10 for extended.
-    pub fn max_wire_bits(&self) -> u32 {
-        let data_bits = if self.rtr { 0 } else { 8 * self.len as u32 };
-        // Stuffable bits: SOF..CRC (34 + data for standard, 54 + data for extended).
-        let (fixed, stuffable) = if self.is_extended() {
-            (67, 54)
-        } else {
-            (47, 34)
-        };
-        let stuff = (stuffable + data_bits - 1) / 4;
-        fixed + data_bits + stuff
-    }
-
-    /// Bits this frame occupies on the wire without bit stuffing (interframe space included).
-    pub fn min_wire_bits(&self) -> u32 {
-        let data_bits = if self.rtr { 0 } else { 8 * self.len as u32 };
-        (if self.is_extended() { 67 } else { 47 }) + data_bits
-    }
-}
-
-impl embedded_can::Frame for CanFrame {
-    fn new(id: impl Into<Id>, data: &[u8]) -> Option<Self> {
-        Self::data_frame(id.into(), data).ok()
-    }
-    fn new_remote(id: impl Into<Id>, dlc: usize) -> Option<Self> {
-        Self::remote(id.into(), u8::try_from(dlc).ok()?).ok()
-    }
-    fn is_extended(&self) -> bool {
-        CanFrame::is_extended(self)
-    }
-    fn is_remote_frame(&self) -> bool {
-        self.rtr
-    }
-    fn id(&self) -> Id {
-        self.id
-    }
-    fn dlc(&self) -> usize {
-        self.len as usize
-    }
-    fn data(&self) -> &[u8] {
-        CanFrame::data(self)
     }
 }
 
@@ -308,21 +176,5 @@ mod tests {
         );
         assert_eq!(CobId::parse(0x180), None);
         assert!(NodeId::new(0).is_err() && NodeId::new(128).is_err());
-    }
-
-    #[test]
-    fn frames_and_wire_time() {
-        let f = CanFrame::standard(0x601, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0]).unwrap();
-        assert_eq!(f.dlc(), 8);
-        assert_eq!(f.min_wire_bits(), 111);
-        assert_eq!(f.max_wire_bits(), 135);
-        let sync = CanFrame::standard(0x080, &[]).unwrap();
-        assert_eq!((sync.min_wire_bits(), sync.max_wire_bits()), (47, 55));
-        let ext = CanFrame::extended(0x1234567, &[0; 8]).unwrap();
-        assert_eq!((ext.min_wire_bits(), ext.max_wire_bits()), (131, 160));
-        assert!(CanFrame::standard(0x800, &[]).is_err());
-        assert!(CanFrame::standard(1, &[0; 9]).is_err());
-        let r = CanFrame::remote(Id::Standard(StandardId::new(0x705).unwrap()), 1).unwrap();
-        assert!(r.is_remote() && r.data().is_empty() && r.dlc() == 1);
     }
 }

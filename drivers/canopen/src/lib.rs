@@ -1,7 +1,7 @@
 //! CANopen, as pure codecs: CAN frames in, meaning out, and back. No I/O, no clocks.
 //!
-//! * [`frame`]: a classic CAN frame ([`CanFrame`]) implementing `embedded_can::Frame`, and
-//!   the CiA 301 predefined connection set (COB-IDs by function and node).
+//! * [`frame`]: the CiA 301 predefined connection set (COB-IDs by function and node) over
+//!   `stride_can`'s classic frame ([`CanFrame`]).
 //! * [`nmt`], [`sync`], [`emcy`], [`heartbeat`]: the network services.
 //! * [`sdo`]: the SDO client protocol (expedited and segmented transfers, abort codes).
 //! * [`pdo`]: PDO mapping entries and communication parameters.
@@ -18,4 +18,5 @@ pub mod pdo;
 pub mod sdo;
 pub mod sync;
 
-pub use frame::{CanFrame, CobId, FrameError, Function, NodeId};
+pub use frame::{CobId, FrameError, Function, NodeId};
+pub use stride_can::CanFrame;

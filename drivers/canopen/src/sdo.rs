@@ -270,7 +270,10 @@ impl ClientRequest {
             }
             ClientRequest::Abort { index, sub, code } => abort_bytes(*index, *sub, *code),
         };
-        CanFrame::standard(CobId::of(Function::SdoRx, node).raw(), &d)
+        Ok(CanFrame::standard(
+            CobId::of(Function::SdoRx, node).raw(),
+            &d,
+        )?)
     }
 
     /// Reads a client frame (as a server does): the addressed node and the request.
@@ -331,7 +334,10 @@ impl ServerResponse {
             }
             ServerResponse::Abort { index, sub, code } => abort_bytes(*index, *sub, *code),
         };
-        CanFrame::standard(CobId::of(Function::SdoTx, node).raw(), &d)
+        Ok(CanFrame::standard(
+            CobId::of(Function::SdoTx, node).raw(),
+            &d,
+        )?)
     }
 
     /// Reads a server frame (as a client does): the answering node and the response.

@@ -5,7 +5,7 @@
 //! lines. [`Command`] is what the host sends, [`Message`] what the dongle sends back, and
 //! [`LineSplitter`] cuts a byte stream into them, resynchronising after garbage.
 
-use stride_canopen::CanFrame;
+use stride_can::CanFrame;
 
 /// Why a line could not be understood.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -222,7 +222,7 @@ pub fn parse_frame(line: &[u8]) -> Result<(CanFrame, Option<u16>), SlcanError> {
         CanFrame::extended(id, &data)
     } else {
         u16::try_from(id)
-            .map_err(|_| stride_canopen::FrameError::BadId(id))
+            .map_err(|_| stride_can::FrameError::BadId(id))
             .and_then(|i| CanFrame::standard(i, &data))
     }
     .map_err(|_| bad("identifier out of range"))?;

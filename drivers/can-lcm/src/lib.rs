@@ -1,15 +1,19 @@
 //! A CAN bus carried over LCM: frames travel as `stride.can_frame_batch_t` on two channels per
-//! bus, `CAN_<BUS>_TX` (to be put on the wire by a gateway) and `CAN_<BUS>_RX` (seen on the
-//! wire). Anyone can sniff them with stride-spy or lcm-spy.
+//! bus, `CAN_<BUS>_TX` (to be put on the wire by a gateway, `stride-usb2can`) and
+//! `CAN_<BUS>_RX` (seen on the wire). Anyone can sniff them with stride-spy or lcm-spy.
+//!
+//! [`LcmBus`] is the client side as a [`CanBus`]: it works on the app's own LCM instance (the
+//! node's), so the app's messages and the bus's frames are handled by one instance and one
+//! loop.
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use ::lcm::{Lcm, Subscription};
+use lcm::{Lcm, Subscription};
+use stride_can::CanFrame;
+use stride_canbus::{BusError, CanBus};
 use stride_lcmtypes::stride::{CanFrameBatchT, CanFrameT, HeaderT};
-
-use crate::{BusError, CanBus, CanFrame};
 
 /// The channel of frames to transmit on bus `name`.
 pub fn tx_channel(name: &str) -> String {
@@ -36,21 +40,47 @@ pub fn frame_to_msg(f: &CanFrame, utime: i64) -> CanFrameT {
     }
 }
 
-/// An LCM frame element as a frame (`None` for error frames or invalid ones).
-pub fn msg_to_frame(m: &CanFrameT) -> Option<CanFrame> {
-    if m.error || !(0..=8).contains(&m.dlc) {
-        return None;
+/// Why an LCM frame element is not a frame.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum BadFrame {
+    /// An error frame (the gateway saw a bus error).
+    Error,
+    /// A length outside 0..=8.
+    Dlc(i8),
+    /// An identifier outside its 11 or 29 bits.
+    Id(i32),
+}
+
+impl std::fmt::Display for BadFrame {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            BadFrame::Error => write!(f, "an error frame"),
+            BadFrame::Dlc(d) => write!(f, "length {d} outside 0..=8"),
+            BadFrame::Id(id) => write!(f, "identifier {id:#x} out of range"),
+        }
+    }
+}
+
+/// An LCM frame element as a frame, or why it is none.
+pub fn msg_to_frame(m: &CanFrameT) -> Result<CanFrame, BadFrame> {
+    if m.error {
+        return Err(BadFrame::Error);
+    }
+    if !(0..=8).contains(&m.dlc) {
+        return Err(BadFrame::Dlc(m.dlc));
     }
     let n = m.dlc as usize;
+    let bad = || BadFrame::Id(m.id);
     let f = if m.extended {
-        CanFrame::extended(m.id as u32, &m.data[..n]).ok()?
+        CanFrame::extended(u32::try_from(m.id).map_err(|_| bad())?, &m.data[..n])
     } else {
-        CanFrame::standard(u16::try_from(m.id).ok()?, &m.data[..n]).ok()?
-    };
+        CanFrame::standard(u16::try_from(m.id).map_err(|_| bad())?, &m.data[..n])
+    }
+    .map_err(|_| bad())?;
     if m.rtr {
-        CanFrame::remote(f.id(), m.dlc as u8).ok()
+        CanFrame::remote(f.id(), m.dlc as u8).map_err(|_| BadFrame::Dlc(m.dlc))
     } else {
-        Some(f)
+        Ok(f)
     }
 }
 
@@ -64,17 +94,19 @@ pub fn batch(bus: &str, header: HeaderT, frames: &[CanFrameT]) -> CanFrameBatchT
     }
 }
 
-fn now_us() -> i64 {
+/// Microseconds since the Unix epoch, the time base of the frame elements.
+pub fn now_us() -> i64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_micros() as i64)
 }
 
-/// The client side of a bus carried over LCM: sends on `CAN_<BUS>_TX`, receives from
-/// `CAN_<BUS>_RX`. It owns its LCM instance and handles it inside `recv`. Frames sent back to
-/// back are batched; `recv` (and [`LcmBus::flush`]) sends what waits.
-pub struct LcmBus {
-    lcm: Lcm,
+/// The client side of a bus carried over LCM, on the app's LCM instance: sends on
+/// `CAN_<BUS>_TX`, receives from `CAN_<BUS>_RX`, and handles the instance while it waits in
+/// `recv` (so the app's own subscriptions are served meanwhile too). Frames sent back to back
+/// are batched; `recv` (and [`LcmBus::flush`]) publishes what waits.
+pub struct LcmBus<'a> {
+    lcm: &'a Lcm,
     name: String,
     tx: String,
     inbox: Arc<Mutex<VecDeque<CanFrame>>>,
@@ -83,22 +115,24 @@ pub struct LcmBus {
     outbox: Vec<CanFrameT>,
 }
 
-impl std::fmt::Debug for LcmBus {
+impl std::fmt::Debug for LcmBus<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("LcmBus").field("bus", &self.name).finish()
     }
 }
 
-impl LcmBus {
-    /// Connects to bus `name` on the LCM bus at `url`.
-    pub fn new(url: &str, name: &str) -> Result<LcmBus, BusError> {
-        let lcm = Lcm::new(url).map_err(|e| BusError::Device(e.to_string()))?;
+/// Frames a batch holds at most.
+pub const BATCH: usize = 64;
+
+impl<'a> LcmBus<'a> {
+    /// Joins bus `name` on `lcm`.
+    pub fn new(lcm: &'a Lcm, name: &str) -> Result<LcmBus<'a>, BusError> {
         let inbox: Arc<Mutex<VecDeque<CanFrame>>> = Arc::default();
         let i = inbox.clone();
         let sub = lcm
             .subscribe(&rx_channel(name), move |_, m: CanFrameBatchT| {
                 let mut q = i.lock().unwrap_or_else(|p| p.into_inner());
-                q.extend(m.frames.iter().filter_map(msg_to_frame));
+                q.extend(m.frames.iter().filter_map(|f| msg_to_frame(f).ok()));
             })
             .map_err(|e| BusError::Device(e.to_string()))?;
         sub.set_queue_capacity(1000)
@@ -140,19 +174,19 @@ impl LcmBus {
     }
 }
 
-impl Drop for LcmBus {
+impl Drop for LcmBus<'_> {
     fn drop(&mut self) {
         // The last frames (an NMT command at shutdown) must not stay behind.
         let _ = self.flush();
     }
 }
 
-impl CanBus for LcmBus {
+impl CanBus for LcmBus<'_> {
     fn send(&mut self, frame: &CanFrame, _deadline: Instant) -> Result<(), BusError> {
-        // Frames sent back to back travel in one batch: flushed when 64 are waiting, or as
+        // Frames sent back to back travel in one batch: flushed when a batch is full, or as
         // soon as the caller turns to receiving.
         self.outbox.push(frame_to_msg(frame, now_us()));
-        if self.outbox.len() >= 64 {
+        if self.outbox.len() >= BATCH {
             self.flush()?;
         }
         Ok(())
@@ -195,14 +229,52 @@ mod tests {
             CanFrame::extended(0x1abcdef, &[0; 8]).unwrap(),
             CanFrame::remote(CanFrame::standard(0x705, &[]).unwrap().id(), 1).unwrap(),
         ] {
-            assert_eq!(msg_to_frame(&frame_to_msg(&f, 5)), Some(f));
+            assert_eq!(msg_to_frame(&frame_to_msg(&f, 5)), Ok(f));
         }
         let mut bad = frame_to_msg(&CanFrame::standard(1, &[]).unwrap(), 0);
         bad.dlc = 9;
-        assert_eq!(msg_to_frame(&bad), None);
+        assert_eq!(msg_to_frame(&bad), Err(BadFrame::Dlc(9)));
+        bad.dlc = -1;
+        assert_eq!(msg_to_frame(&bad), Err(BadFrame::Dlc(-1)));
         bad.dlc = 0;
         bad.id = 0x900;
-        assert_eq!(msg_to_frame(&bad), None);
+        assert_eq!(msg_to_frame(&bad), Err(BadFrame::Id(0x900)));
+        bad.id = -5;
+        assert_eq!(msg_to_frame(&bad), Err(BadFrame::Id(-5)));
+        bad.extended = true;
+        bad.id = 0x7fff_ffff;
+        assert_eq!(msg_to_frame(&bad), Err(BadFrame::Id(0x7fff_ffff)));
+        bad.error = true;
+        assert_eq!(msg_to_frame(&bad), Err(BadFrame::Error));
         assert_eq!(tx_channel("left_leg"), "CAN_LEFT_LEG_TX");
+    }
+
+    #[test]
+    fn a_bus_over_memq_shares_the_apps_instance() {
+        let lcm = Lcm::new("memq://").unwrap();
+        let seen: Arc<Mutex<Vec<CanFrameBatchT>>> = Arc::default();
+        let s = seen.clone();
+        let _tx = lcm
+            .subscribe(&tx_channel("x"), move |_, m: CanFrameBatchT| {
+                s.lock().unwrap().push(m)
+            })
+            .unwrap();
+        let mut bus = LcmBus::new(&lcm, "x").unwrap();
+        let f = CanFrame::standard(0x601, &[0x40, 0, 0x10, 0, 0, 0, 0, 0]).unwrap();
+        bus.send(&f, Instant::now()).unwrap();
+        bus.send(&f, Instant::now()).unwrap();
+        // Receiving publishes the two frames as one batch, and the app's subscription is
+        // served by the same instance.
+        assert_eq!(
+            bus.recv(Instant::now() + Duration::from_millis(20)),
+            Err(BusError::Timeout)
+        );
+        let got = seen.lock().unwrap().clone();
+        assert_eq!(got.len(), 1);
+        assert_eq!(got[0].num_frames, 2);
+        // What the gateway publishes on RX comes back out of recv.
+        let echo = batch("x", HeaderT::default(), &[frame_to_msg(&f, 1)]);
+        lcm.publish(&rx_channel("x"), &echo).unwrap();
+        assert_eq!(bus.recv(Instant::now() + Duration::from_millis(100)), Ok(f));
     }
 }
