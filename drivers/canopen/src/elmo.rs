@@ -73,10 +73,7 @@ impl Command {
     /// Reads a command (as a drive does).
     pub fn decode(data: &[u8]) -> Result<Command, FrameError> {
         if data.len() < 4 {
-            return Err(FrameError::Short {
-                expected: 4,
-                found: data.len(),
-            });
+            return Err(FrameError::short(4, data.len()));
         }
         let name = [data[0], data[1]];
         let index = data[2] as u16 | ((data[3] & 0x3f) as u16) << 8;
@@ -84,10 +81,7 @@ impl Command {
             None
         } else {
             if data.len() < 8 {
-                return Err(FrameError::Short {
-                    expected: 8,
-                    found: data.len(),
-                });
+                return Err(FrameError::short(8, data.len()));
             }
             let raw = [data[4], data[5], data[6], data[7]];
             Some(if data[3] & 0x80 != 0 {
@@ -115,10 +109,7 @@ impl Reply {
     /// Reads a TPDO2 payload.
     pub fn decode(data: &[u8]) -> Result<Reply, FrameError> {
         if data.len() < 8 {
-            return Err(FrameError::Short {
-                expected: 8,
-                found: data.len(),
-            });
+            return Err(FrameError::short(8, data.len()));
         }
         let raw = [data[4], data[5], data[6], data[7]];
         let result = if data[3] & 0x40 != 0 {

@@ -6,37 +6,21 @@ pub use stride_can::CanFrame;
 /// Why a frame could not be built or understood.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum FrameError {
-    /// More than 8 data bytes.
-    #[error("{0} data bytes; classic CAN carries at most 8")]
-    TooLong(usize),
-    /// An identifier outside the 11-bit or 29-bit range.
-    #[error("identifier {0:#x} out of range")]
-    BadId(u32),
+    /// Not a valid CAN frame (length, identifier), or too short for the protocol.
+    #[error(transparent)]
+    Frame(#[from] stride_can::FrameError),
     /// A node id outside 1..=127.
     #[error("node id {0} outside 1..=127")]
     BadNode(u8),
-    /// A frame too short for the protocol.
-    #[error("expected at least {expected} data bytes, found {found}")]
-    Short {
-        /// Bytes needed.
-        expected: usize,
-        /// Bytes present.
-        found: usize,
-    },
     /// A frame that is not what the protocol expects.
     #[error("unexpected frame: {0}")]
     Unexpected(&'static str),
 }
 
-impl From<stride_can::FrameError> for FrameError {
-    fn from(e: stride_can::FrameError) -> FrameError {
-        match e {
-            stride_can::FrameError::TooLong(n) => FrameError::TooLong(n),
-            stride_can::FrameError::BadId(id) => FrameError::BadId(id),
-            stride_can::FrameError::Short { expected, found } => {
-                FrameError::Short { expected, found }
-            }
-        }
+impl FrameError {
+    /// Fewer than `expected` data bytes.
+    pub fn short(expected: usize, found: usize) -> FrameError {
+        FrameError::Frame(stride_can::FrameError::Short { expected, found })
     }
 }
 

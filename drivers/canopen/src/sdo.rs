@@ -219,7 +219,7 @@ fn parse_initiate(d: &[u8]) -> Initiate {
 
 fn segment_bytes(base: u8, toggle: bool, data: &[u8], last: bool) -> Result<[u8; 8], FrameError> {
     if data.len() > 7 {
-        return Err(FrameError::TooLong(data.len()));
+        return Err(stride_can::FrameError::TooLong(data.len()).into());
     }
     let mut d = [0u8; 8];
     d[0] = base | ((toggle as u8) << 4) | (((7 - data.len()) as u8) << 1) | last as u8;
