@@ -37,6 +37,62 @@ pub const PROFILE_DECELERATION: u16 = 0x6084;
 pub const FOLLOWING_ERROR_WINDOW: u16 = 0x6065;
 /// Quick stop deceleration (0x6085), counts/s².
 pub const QUICK_STOP_DECELERATION: u16 = 0x6085;
+/// Abort connection option code (0x6007): what the drive does on a communication error (a
+/// heartbeat it consumes timed out, bus-off), an [`AbortConnection`] value.
+pub const ABORT_CONNECTION_OPTION: u16 = 0x6007;
+
+/// A value of 0x6007 (CiA 402-2, 6.2.1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum AbortConnection {
+    /// 0: no action.
+    NoAction,
+    /// 1: fault signal (the drive faults).
+    Fault,
+    /// 2: disable voltage (torque off at once).
+    DisableVoltage,
+    /// 3: quick stop (decelerate at 0x6085, then hold).
+    QuickStop,
+}
+
+impl AbortConnection {
+    /// The 16-bit value of 0x6007.
+    pub fn code(self) -> i16 {
+        match self {
+            AbortConnection::NoAction => 0,
+            AbortConnection::Fault => 1,
+            AbortConnection::DisableVoltage => 2,
+            AbortConnection::QuickStop => 3,
+        }
+    }
+
+    /// Reads a value of 0x6007 (`None` for manufacturer-specific ones).
+    pub fn from_code(c: i16) -> Option<AbortConnection> {
+        Some(match c {
+            0 => AbortConnection::NoAction,
+            1 => AbortConnection::Fault,
+            2 => AbortConnection::DisableVoltage,
+            3 => AbortConnection::QuickStop,
+            _ => return None,
+        })
+    }
+}
+
+/// The controlword sent as a PDO (`cob`: the RPDO the drive maps 0x6040 to, RPDO1 by
+/// default).
+pub fn controlword_frame(cob: u16, controlword: u16) -> crate::CanFrame {
+    crate::CanFrame::standard(cob, &controlword.to_le_bytes()).expect("an RPDO identifier")
+}
+
+/// An interpolated-position set-point (0x60C1:1, counts) sent as a PDO (`cob`: the RPDO
+/// the drive maps it to).
+pub fn ip_setpoint_frame(cob: u16, position: i32) -> crate::CanFrame {
+    crate::CanFrame::standard(cob, &position.to_le_bytes()).expect("an RPDO identifier")
+}
+
+/// True when the statusword's fault bit (3) is set.
+pub fn fault_bit(statusword: u16) -> bool {
+    statusword & 0x0008 != 0
+}
 
 /// A mode of operation (0x6060 / 0x6061).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

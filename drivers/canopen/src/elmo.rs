@@ -153,6 +153,12 @@ pub const PVT_OBJECT: u16 = 0x2001;
 pub const PT_OBJECT: u16 = 0x2002;
 /// Table rows of the PVT buffer.
 pub const PVT_ROWS: u16 = 64;
+/// The table's write pointer (0x2F11), readable through a PDO.
+pub const WRITE_POINTER: u16 = 0x2f11;
+/// The table's read pointer (0x2F12), readable only through a PDO.
+pub const READ_POINTER: u16 = 0x2f12;
+/// The largest PVT velocity, counts/s: the field is 24 bits, signed.
+pub const PVT_MAX_VELOCITY: i32 = (1 << 23) - 1;
 
 /// One PVT row: position (counts), velocity (counts/s, 24 bits), time to the next row (ms).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -181,6 +187,11 @@ impl PvtRow {
         Ok(d)
     }
 
+    /// The row as the frame of the RPDO `cob` that maps object 0x2001.
+    pub fn frame(&self, cob: u16) -> Result<CanFrame, FrameError> {
+        Ok(CanFrame::standard(cob, &self.bytes()?)?)
+    }
+
     /// Reads object 0x2001's bytes (sign-extending the 24-bit velocity).
     pub fn from_bytes(d: &[u8; 8]) -> PvtRow {
         let v = i32::from_le_bytes([d[4], d[5], d[6], if d[6] & 0x80 != 0 { 0xff } else { 0 }]);
@@ -198,6 +209,11 @@ pub fn pt_bytes(first: i32, second: i32) -> [u8; 8] {
     d[..4].copy_from_slice(&first.to_le_bytes());
     d[4..].copy_from_slice(&second.to_le_bytes());
     d
+}
+
+/// Two PT positions as the frame of the RPDO `cob` that maps object 0x2002.
+pub fn pt_frame(cob: u16, first: i32, second: i32) -> CanFrame {
+    CanFrame::standard(cob, &pt_bytes(first, second)).expect("an RPDO identifier")
 }
 
 /// The host's view of a drive's PVT ring: rows written, rows executed, room left.

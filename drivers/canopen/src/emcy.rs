@@ -17,6 +17,24 @@ pub struct Emcy {
 }
 
 impl Emcy {
+    /// Error reset or no error: sent when an error condition clears.
+    pub const ERROR_RESET: u16 = 0x0000;
+    /// Life guard or heartbeat error: a heartbeat the node consumes timed out.
+    pub const HEARTBEAT_ERROR: u16 = 0x8130;
+    /// Following error (CiA 402).
+    pub const FOLLOWING_ERROR: u16 = 0x8611;
+
+    /// The "error reset" a node sends when its error condition clears (register as it is
+    /// after the reset, usually 0).
+    pub fn error_reset(node: NodeId, register: u8) -> Emcy {
+        Emcy {
+            node,
+            code: Self::ERROR_RESET,
+            register,
+            manufacturer: [0; 5],
+        }
+    }
+
     /// Encodes the message.
     pub fn encode(&self) -> CanFrame {
         let mut d = [0u8; 8];

@@ -2,6 +2,42 @@
 
 use crate::frame::{CanFrame, FrameError};
 
+/// Error behaviour (0x1029): sub 1 says what a node does on a communication error (a
+/// consumer heartbeat timed out, bus-off) with a [`ErrorBehaviour`] value.
+pub const ERROR_BEHAVIOUR: u16 = 0x1029;
+
+/// A value of 0x1029:1 (CiA 301, 7.5.2.32).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ErrorBehaviour {
+    /// 0: to pre-operational (if operational).
+    PreOperational,
+    /// 1: no change of the NMT state.
+    NoChange,
+    /// 2: to stopped.
+    Stopped,
+}
+
+impl ErrorBehaviour {
+    /// The value of 0x1029:1.
+    pub fn code(self) -> u8 {
+        match self {
+            ErrorBehaviour::PreOperational => 0,
+            ErrorBehaviour::NoChange => 1,
+            ErrorBehaviour::Stopped => 2,
+        }
+    }
+
+    /// Reads a value of 0x1029:1.
+    pub fn from_code(c: u8) -> Option<ErrorBehaviour> {
+        Some(match c {
+            0 => ErrorBehaviour::PreOperational,
+            1 => ErrorBehaviour::NoChange,
+            2 => ErrorBehaviour::Stopped,
+            _ => return None,
+        })
+    }
+}
+
 /// An NMT command.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Command {

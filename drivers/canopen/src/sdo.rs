@@ -1,5 +1,8 @@
 //! SDO: the service data protocol (client 0x600 + node, server 0x580 + node), expedited and
-//! segmented transfers, abort codes, and client-side transfer state machines.
+//! segmented transfers, abort codes, the client-side transfer state machines ([`Download`],
+//! [`Upload`]) and the server side ([`Server`], over any object dictionary that implements
+//! [`Dictionary`]). Block transfers are recognised and refused, as a server without them
+//! must.
 
 use crate::frame::{CanFrame, CobId, FrameError, Function, NodeId};
 
@@ -14,6 +17,8 @@ impl AbortCode {
     pub const TIMEOUT: AbortCode = AbortCode(0x0504_0000);
     /// Command specifier not valid or unknown.
     pub const BAD_COMMAND: AbortCode = AbortCode(0x0504_0001);
+    /// Out of memory (an object larger than the other side takes).
+    pub const OUT_OF_MEMORY: AbortCode = AbortCode(0x0504_0005);
     /// Object does not exist in the object dictionary.
     pub const NO_OBJECT: AbortCode = AbortCode(0x0602_0000);
     /// Sub-index does not exist.
@@ -24,6 +29,12 @@ impl AbortCode {
     pub const WRITE_ONLY: AbortCode = AbortCode(0x0601_0001);
     /// Data type or length does not match.
     pub const LENGTH_MISMATCH: AbortCode = AbortCode(0x0607_0010);
+    /// Object cannot be mapped to the PDO.
+    pub const NOT_MAPPABLE: AbortCode = AbortCode(0x0604_0041);
+    /// The mapped objects would exceed the PDO length.
+    pub const PDO_TOO_LONG: AbortCode = AbortCode(0x0604_0042);
+    /// Invalid value for parameter (download only).
+    pub const INVALID_VALUE: AbortCode = AbortCode(0x0609_0030);
     /// Value of parameter written too high.
     pub const VALUE_TOO_HIGH: AbortCode = AbortCode(0x0609_0031);
     /// Data cannot be transferred because of the present device state.
@@ -117,6 +128,16 @@ pub enum ClientRequest {
     UploadSegment {
         /// Toggle bit.
         toggle: bool,
+    },
+    /// A block transfer (command specifier 5, upload, or 6, download); `index`/`sub` are
+    /// those of an initiate request.
+    Block {
+        /// True for a block download, false for a block upload.
+        download: bool,
+        /// Object index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
     },
     /// Abort the transfer.
     Abort {
@@ -268,6 +289,19 @@ impl ClientRequest {
             ClientRequest::UploadSegment { toggle } => {
                 [0x60 | ((*toggle as u8) << 4), 0, 0, 0, 0, 0, 0, 0]
             }
+            ClientRequest::Block {
+                download,
+                index,
+                sub,
+            } => {
+                // The initiate request; a block upload asks for blocks of 127 segments.
+                let mut d = [if *download { 0xc0 } else { 0xa0 }, 0, 0, 0, 0, 0, 0, 0];
+                d[1..4].copy_from_slice(&mux(*index, *sub));
+                if !*download {
+                    d[4] = 127;
+                }
+                d
+            }
             ClientRequest::Abort { index, sub, code } => abort_bytes(*index, *sub, *code),
         };
         Ok(CanFrame::standard(
@@ -300,6 +334,14 @@ impl ClientRequest {
             3 => ClientRequest::UploadSegment {
                 toggle: d[0] & 0x10 != 0,
             },
+            5 | 6 => {
+                let (index, sub) = index_sub(d);
+                ClientRequest::Block {
+                    download: d[0] >> 5 == 6,
+                    index,
+                    sub,
+                }
+            }
             4 => {
                 let (index, sub) = index_sub(d);
                 ClientRequest::Abort {
@@ -559,7 +601,7 @@ impl Upload {
                         if size.is_some_and(|s| s as usize > self.max_size) {
                             return Err(SdoError::Protocol {
                                 reason: "object larger than accepted",
-                                code: AbortCode(0x0504_0005),
+                                code: AbortCode::OUT_OF_MEMORY,
                             });
                         }
                         self.segmented = true;
@@ -578,7 +620,7 @@ impl Upload {
                 if self.data.len() + data.len() > self.max_size {
                     return Err(SdoError::Protocol {
                         reason: "object larger than accepted",
-                        code: AbortCode(0x0504_0005),
+                        code: AbortCode::OUT_OF_MEMORY,
                     });
                 }
                 self.data.extend_from_slice(data);
@@ -598,6 +640,222 @@ impl Upload {
                 }
             }
             _ => Err(protocol("unexpected response to an upload")),
+        }
+    }
+}
+
+/// The object dictionary an SDO [`Server`] serves. Its implementation decides what exists,
+/// who may read and write it, and what a write does.
+pub trait Dictionary {
+    /// The value of `index`/`sub`, for an upload.
+    fn upload(&mut self, index: u16, sub: u8) -> Result<Vec<u8>, AbortCode>;
+    /// Whether a segmented write of `size` bytes (when indicated) to `index`/`sub` may begin
+    /// (the object exists and is writable); the data follows.
+    fn may_download(&mut self, index: u16, sub: u8, size: Option<u32>) -> Result<(), AbortCode>;
+    /// Writes `data` to `index`/`sub`.
+    fn download(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode>;
+}
+
+/// A segmented transfer the server has under way.
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Transfer {
+    Upload {
+        index: u16,
+        sub: u8,
+        data: Vec<u8>,
+        toggle: bool,
+    },
+    Download {
+        index: u16,
+        sub: u8,
+        size: Option<u32>,
+        data: Vec<u8>,
+        toggle: bool,
+    },
+}
+
+/// The server side of SDO as a pure state machine: one request in, at most one response out,
+/// over a [`Dictionary`]. Expedited and segmented transfers in both directions, toggle and
+/// size checks, the client's abort (ends the transfer, no answer), and block transfers
+/// refused with "command specifier not valid" (0x05040001).
+#[derive(Debug, Clone)]
+pub struct Server {
+    transfer: Option<Transfer>,
+    /// Largest segmented download taken, so a client cannot make the server grow without
+    /// bound.
+    max_size: usize,
+}
+
+impl Default for Server {
+    fn default() -> Server {
+        Server::new()
+    }
+}
+
+impl Server {
+    /// A server with no transfer under way, taking writes of up to 4096 bytes.
+    pub fn new() -> Server {
+        Server {
+            transfer: None,
+            max_size: 4096,
+        }
+    }
+
+    /// Forgets a transfer under way (NMT reset).
+    pub fn reset(&mut self) {
+        self.transfer = None;
+    }
+
+    /// True while a segmented transfer is under way.
+    pub fn busy(&self) -> bool {
+        self.transfer.is_some()
+    }
+
+    /// Ends the transfer under way with `code`, naming its object (0/0 when none).
+    fn abort(&mut self, code: AbortCode) -> ServerResponse {
+        let (index, sub) = match self.transfer.take() {
+            Some(Transfer::Upload { index, sub, .. } | Transfer::Download { index, sub, .. }) => {
+                (index, sub)
+            }
+            None => (0, 0),
+        };
+        ServerResponse::Abort { index, sub, code }
+    }
+
+    /// Serves one request; `None` when nothing is to be answered (a client's abort).
+    pub fn on_request(
+        &mut self,
+        req: &ClientRequest,
+        od: &mut impl Dictionary,
+    ) -> Option<ServerResponse> {
+        let abort = |index, sub, code| Some(ServerResponse::Abort { index, sub, code });
+        match req {
+            ClientRequest::InitiateUpload { index, sub } => {
+                // A new initiate ends whatever was under way.
+                self.transfer = None;
+                let (index, sub) = (*index, *sub);
+                let data = match od.upload(index, sub) {
+                    Ok(d) => d,
+                    Err(code) => return abort(index, sub, code),
+                };
+                if (1..=4).contains(&data.len()) {
+                    return Some(ServerResponse::UploadInitiated {
+                        index,
+                        sub,
+                        data: Initiate::Expedited(data),
+                    });
+                }
+                let size = data.len() as u32;
+                self.transfer = Some(Transfer::Upload {
+                    index,
+                    sub,
+                    data,
+                    toggle: false,
+                });
+                Some(ServerResponse::UploadInitiated {
+                    index,
+                    sub,
+                    data: Initiate::Segmented(Some(size)),
+                })
+            }
+            ClientRequest::UploadSegment { toggle } => {
+                let Some(Transfer::Upload {
+                    data,
+                    toggle: expected,
+                    ..
+                }) = self.transfer.as_mut()
+                else {
+                    return Some(self.abort(AbortCode::BAD_COMMAND));
+                };
+                if toggle != expected {
+                    return Some(self.abort(AbortCode::TOGGLE));
+                }
+                *expected = !*expected;
+                let n = data.len().min(7);
+                let chunk: Vec<u8> = data.drain(..n).collect();
+                let last = data.is_empty();
+                if last {
+                    self.transfer = None;
+                }
+                Some(ServerResponse::UploadSegment {
+                    toggle: *toggle,
+                    data: chunk,
+                    last,
+                })
+            }
+            ClientRequest::InitiateDownload { index, sub, data } => {
+                self.transfer = None;
+                let (index, sub) = (*index, *sub);
+                match data {
+                    Initiate::Expedited(bytes) => match od.download(index, sub, bytes) {
+                        Ok(()) => Some(ServerResponse::DownloadInitiated { index, sub }),
+                        Err(code) => abort(index, sub, code),
+                    },
+                    Initiate::Segmented(size) => {
+                        if size.is_some_and(|s| s as usize > self.max_size) {
+                            return abort(index, sub, AbortCode::OUT_OF_MEMORY);
+                        }
+                        if let Err(code) = od.may_download(index, sub, *size) {
+                            return abort(index, sub, code);
+                        }
+                        self.transfer = Some(Transfer::Download {
+                            index,
+                            sub,
+                            size: *size,
+                            data: Vec::new(),
+                            toggle: false,
+                        });
+                        Some(ServerResponse::DownloadInitiated { index, sub })
+                    }
+                }
+            }
+            ClientRequest::DownloadSegment { toggle, data, last } => {
+                let max = self.max_size;
+                let Some(Transfer::Download {
+                    data: got,
+                    toggle: expected,
+                    ..
+                }) = self.transfer.as_mut()
+                else {
+                    return Some(self.abort(AbortCode::BAD_COMMAND));
+                };
+                if toggle != expected {
+                    return Some(self.abort(AbortCode::TOGGLE));
+                }
+                if got.len() + data.len() > max {
+                    return Some(self.abort(AbortCode::OUT_OF_MEMORY));
+                }
+                *expected = !*expected;
+                got.extend_from_slice(data);
+                if *last {
+                    let Some(Transfer::Download {
+                        index,
+                        sub,
+                        size,
+                        data,
+                        ..
+                    }) = self.transfer.take()
+                    else {
+                        unreachable!("a download is under way")
+                    };
+                    if size.is_some_and(|s| s as usize != data.len()) {
+                        return abort(index, sub, AbortCode::LENGTH_MISMATCH);
+                    }
+                    if let Err(code) = od.download(index, sub, &data) {
+                        return abort(index, sub, code);
+                    }
+                }
+                Some(ServerResponse::DownloadSegmentAck { toggle: *toggle })
+            }
+            ClientRequest::Block { index, sub, .. } => {
+                self.transfer = None;
+                abort(*index, *sub, AbortCode::BAD_COMMAND)
+            }
+            // The client gave up: the transfer ends, and CiA 301 has no answer to an abort.
+            ClientRequest::Abort { .. } => {
+                self.transfer = None;
+                None
+            }
         }
     }
 }
@@ -730,7 +988,7 @@ mod tests {
                     last: obj.is_empty(),
                 }
             }
-            ClientRequest::Abort { .. } => unreachable!(),
+            ClientRequest::Abort { .. } | ClientRequest::Block { .. } => unreachable!(),
         }
     }
 
@@ -798,6 +1056,176 @@ mod tests {
             data: Initiate::Expedited(vec![1]),
         };
         assert!(up.on_response(&other).is_err());
+    }
+
+    /// A dictionary of plain values: 0x1000:0 read-only, 0x1008:0 text, 0x2000:1 a u16.
+    struct Od(std::collections::BTreeMap<(u16, u8), (bool, Vec<u8>)>);
+
+    impl Od {
+        fn new() -> Od {
+            let mut m = std::collections::BTreeMap::new();
+            m.insert((0x1000, 0), (false, vec![0x92, 1, 2, 0]));
+            m.insert((0x1008, 0), (true, b"a name longer than seven".to_vec()));
+            m.insert((0x2000, 1), (true, vec![0, 0]));
+            Od(m)
+        }
+        fn entry(&self, index: u16, sub: u8) -> Result<&(bool, Vec<u8>), AbortCode> {
+            self.0
+                .get(&(index, sub))
+                .ok_or(if self.0.keys().any(|(i, _)| *i == index) {
+                    AbortCode::NO_SUBINDEX
+                } else {
+                    AbortCode::NO_OBJECT
+                })
+        }
+    }
+
+    impl Dictionary for Od {
+        fn upload(&mut self, index: u16, sub: u8) -> Result<Vec<u8>, AbortCode> {
+            Ok(self.entry(index, sub)?.1.clone())
+        }
+        fn may_download(&mut self, index: u16, sub: u8, _: Option<u32>) -> Result<(), AbortCode> {
+            match self.entry(index, sub)? {
+                (true, _) => Ok(()),
+                _ => Err(AbortCode::READ_ONLY),
+            }
+        }
+        fn download(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
+            self.may_download(index, sub, None)?;
+            let e = self.0.get_mut(&(index, sub)).expect("checked");
+            if index != 0x1008 && e.1.len() != data.len() {
+                return Err(AbortCode::LENGTH_MISMATCH);
+            }
+            e.1 = data.to_vec();
+            Ok(())
+        }
+    }
+
+    /// Runs a client transfer against `server` through real frames; the data, or the abort.
+    fn run(
+        server: &mut Server,
+        od: &mut Od,
+        mut first: ClientRequest,
+        mut step: impl FnMut(&ServerResponse) -> Result<Step, SdoError>,
+    ) -> Result<Vec<u8>, SdoError> {
+        loop {
+            let (_, req) = ClientRequest::decode(&first.encode(n(3)).unwrap()).unwrap();
+            let resp = server.on_request(&req, od).expect("answered");
+            let (_, resp) = ServerResponse::decode(&resp.encode(n(3)).unwrap()).unwrap();
+            match step(&resp)? {
+                Step::Send(r) => first = r,
+                Step::Done(d) => return Ok(d),
+            }
+        }
+    }
+
+    #[test]
+    fn the_server_serves_the_client_state_machines() {
+        let (mut server, mut od) = (Server::new(), Od::new());
+        let up = |server: &mut Server, od: &mut Od, index, sub| {
+            let mut u = Upload::new(index, sub, 256);
+            let r = u.start();
+            run(server, od, r, |resp| u.on_response(resp))
+        };
+        assert_eq!(
+            up(&mut server, &mut od, 0x1000, 0).unwrap(),
+            [0x92, 1, 2, 0]
+        );
+        assert_eq!(
+            up(&mut server, &mut od, 0x1008, 0).unwrap(),
+            b"a name longer than seven"
+        );
+        // A segmented write, then an expedited one, read back.
+        let text = b"twenty bytes of text".to_vec();
+        let mut d = Download::new(0x1008, 0, text.clone());
+        let r = d.start();
+        run(&mut server, &mut od, r, |resp| d.on_response(resp)).unwrap();
+        assert_eq!(up(&mut server, &mut od, 0x1008, 0).unwrap(), text);
+        let mut d = Download::new(0x2000, 1, vec![7, 0]);
+        let r = d.start();
+        run(&mut server, &mut od, r, |resp| d.on_response(resp)).unwrap();
+        assert_eq!(od.0[&(0x2000, 1)].1, [7, 0]);
+        assert!(!server.busy());
+    }
+
+    #[test]
+    fn the_server_aborts_as_cia_301_says() {
+        let (mut server, mut od) = (Server::new(), Od::new());
+        let aborted = |r: Option<ServerResponse>| match r {
+            Some(ServerResponse::Abort { index, sub, code }) => (index, sub, code),
+            other => panic!("{other:?}"),
+        };
+        let upload = |index, sub| ClientRequest::InitiateUpload { index, sub };
+        // An absent object, an absent sub-index of an existing one.
+        assert_eq!(
+            aborted(server.on_request(&upload(0x2222, 0), &mut od)),
+            (0x2222, 0, AbortCode::NO_OBJECT)
+        );
+        assert_eq!(
+            aborted(server.on_request(&upload(0x2000, 2), &mut od)),
+            (0x2000, 2, AbortCode::NO_SUBINDEX)
+        );
+        // A write to a read-only object, expedited and segmented.
+        let write = |data| ClientRequest::InitiateDownload {
+            index: 0x1000,
+            sub: 0,
+            data,
+        };
+        assert_eq!(
+            aborted(server.on_request(&write(Initiate::Expedited(vec![1])), &mut od)).2,
+            AbortCode::READ_ONLY
+        );
+        assert_eq!(
+            aborted(server.on_request(&write(Initiate::Segmented(Some(9))), &mut od)).2,
+            AbortCode::READ_ONLY
+        );
+        // A segment with no transfer under way; a block transfer.
+        assert_eq!(
+            aborted(server.on_request(&ClientRequest::UploadSegment { toggle: false }, &mut od)),
+            (0, 0, AbortCode::BAD_COMMAND)
+        );
+        let block = ClientRequest::Block {
+            download: false,
+            index: 0x1008,
+            sub: 0,
+        };
+        let (_, block) = ClientRequest::decode(&block.encode(n(3)).unwrap()).unwrap();
+        assert_eq!(
+            aborted(server.on_request(&block, &mut od)),
+            (0x1008, 0, AbortCode::BAD_COMMAND)
+        );
+        // A wrong toggle ends the transfer, naming it.
+        server.on_request(&upload(0x1008, 0), &mut od).unwrap();
+        assert_eq!(
+            aborted(server.on_request(&ClientRequest::UploadSegment { toggle: true }, &mut od)),
+            (0x1008, 0, AbortCode::TOGGLE)
+        );
+        assert!(!server.busy());
+        // A segmented write whose data is shorter than the size it announced.
+        let w = ClientRequest::InitiateDownload {
+            index: 0x1008,
+            sub: 0,
+            data: Initiate::Segmented(Some(10)),
+        };
+        server.on_request(&w, &mut od).unwrap();
+        let seg = ClientRequest::DownloadSegment {
+            toggle: false,
+            data: vec![1, 2, 3],
+            last: true,
+        };
+        assert_eq!(
+            aborted(server.on_request(&seg, &mut od)),
+            (0x1008, 0, AbortCode::LENGTH_MISMATCH)
+        );
+        // The client's abort ends a transfer and gets no answer.
+        server.on_request(&upload(0x1008, 0), &mut od).unwrap();
+        let abort = ClientRequest::Abort {
+            index: 0x1008,
+            sub: 0,
+            code: AbortCode::GENERAL,
+        };
+        assert_eq!(server.on_request(&abort, &mut od), None);
+        assert!(!server.busy());
     }
 
     proptest::proptest! {
