@@ -50,6 +50,7 @@ fn trajectory() -> JointTrajectoryT {
         header: header(),
         start_utime: 0,
         mode: JointTrajectoryT::MODE_PVT,
+        queue: JointTrajectoryT::QUEUE_REPLACE,
         num_joints: joints,
         joint_names: (0..joints).map(|j| format!("leg_joint_{j}")).collect(),
         num_rows: rows,

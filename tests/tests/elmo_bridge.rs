@@ -1,5 +1,7 @@
 //! stride-elmo-bridge as a process: six simulated Elmo drives of Archie's left leg driven from
-//! LCM, joint states back, limits, the stream watchdog and shutdown.
+//! LCM, joint states and the trajectory status back; limits, streams that stop, stops and the
+//! enable after them; and over the whole chain (bridge, LCM, stride-usb2can, a pty, the fake
+//! dongle, the drives): a fault, a SIGKILL mid-motion, and the shutdown.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -7,7 +9,13 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use lcm::Lcm;
-use stride_lcmtypes::stride::{JointStateT, JointTrajectoryT, NodeStatusT};
+use stride_can::CanFrame;
+use stride_canopen::ds402::State as DriveState;
+use stride_canopen::emcy::Emcy;
+use stride_canopen::frame::NodeId;
+use stride_lcmtypes::stride::{
+    CanFrameBatchT, JointStateT, JointTrajectoryT, NodeStatusT, TrajectoryStatusT,
+};
 use stride_tests::{bin, in_sandbox, udpm_url, Proc};
 
 const JOINTS: [&str; 6] = [
@@ -18,15 +26,19 @@ const JOINTS: [&str; 6] = [
     "left_ankle_pitch",
     "left_ankle_roll",
 ];
+const TRAJECTORY: &str = "JOINT_TRAJECTORY_LEFT_LEG";
 
 fn config() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../config/robots/archie-left-leg.toml")
 }
 
+fn bridge_config() -> stride_elmo_bridge::BridgeConfig {
+    toml::from_str(&std::fs::read_to_string(config()).unwrap()).unwrap()
+}
+
 /// True when every joint of `s` is within its configured tolerance of `want`.
 fn within_tolerance(s: &JointStateT, want: &[f64]) -> bool {
-    let cfg: stride_elmo_bridge::BridgeConfig =
-        toml::from_str(&std::fs::read_to_string(config()).unwrap()).unwrap();
+    let cfg = bridge_config();
     s.names == JOINTS
         && s.positions
             .iter()
@@ -35,10 +47,11 @@ fn within_tolerance(s: &JointStateT, want: &[f64]) -> bool {
             .all(|((p, q), j)| (p - q).abs() < j.tolerance)
 }
 
-/// A smooth move from 0 to `amp` (scaled per joint; the knee only bends forward) in `secs`.
+/// A smooth move from `from` by `amp` (scaled per joint; the knee only bends forward) in
+/// `secs`, rows 10 ms apart, all six joints.
 fn trajectory(secs: f64, amp: f64) -> JointTrajectoryT {
     let dt = 0.01;
-    let rows = (secs / dt) as usize + 1;
+    let rows = (secs / dt).round() as usize + 1;
     let scale = [0.2, 0.2, -0.5, 1.0, 0.4, 0.2];
     let s = |t: f64| (1.0 - (std::f64::consts::PI * t / secs).cos()) / 2.0;
     let ds = |t: f64| std::f64::consts::PI / secs * (std::f64::consts::PI * t / secs).sin() / 2.0;
@@ -58,39 +71,113 @@ fn trajectory(secs: f64, amp: f64) -> JointTrajectoryT {
     }
 }
 
-struct Watch {
-    states: Arc<Mutex<Vec<JointStateT>>>,
-    status: Arc<Mutex<Vec<NodeStatusT>>>,
-    _subs: Vec<lcm::Subscription>,
-}
-
-fn watch(lcm: &Lcm) -> Watch {
-    let states = Arc::new(Mutex::new(Vec::new()));
-    let status = Arc::new(Mutex::new(Vec::new()));
-    let (s1, s2) = (states.clone(), status.clone());
-    let subs = vec![
-        lcm.subscribe("JOINT_STATE_LEFT_LEG", move |_, m: JointStateT| {
-            s1.lock().unwrap().push(m)
-        })
-        .unwrap(),
-        lcm.subscribe("STRIDE_STATUS", move |_, m: NodeStatusT| {
-            s2.lock().unwrap().push(m)
-        })
-        .unwrap(),
-    ];
-    Watch {
-        states,
-        status,
-        _subs: subs,
+/// One joint's trajectory from rows of (time, position, velocity).
+fn one(joint: &str, rows: &[(f64, f64, f64)]) -> JointTrajectoryT {
+    JointTrajectoryT {
+        mode: JointTrajectoryT::MODE_PVT,
+        num_joints: 1,
+        joint_names: vec![joint.into()],
+        num_rows: rows.len() as i32,
+        time_from_start: rows.iter().map(|r| r.0).collect(),
+        positions: rows.iter().map(|r| vec![r.1]).collect(),
+        velocities: rows.iter().map(|r| vec![r.2]).collect(),
+        ..Default::default()
     }
 }
 
-fn wait_for(lcm: &Lcm, secs: u64, done: impl FnMut() -> bool) -> bool {
-    stride_tests::handle_until(lcm, Duration::from_secs(secs), done)
+/// A minimum-jerk move of one joint, rows 10 ms apart.
+fn minjerk(joint: &str, from: f64, to: f64, secs: f64) -> JointTrajectoryT {
+    let n = (secs / 0.01).round() as usize;
+    let rows: Vec<(f64, f64, f64)> = (0..=n)
+        .map(|r| {
+            let t = r as f64 * 0.01;
+            let x = t / secs;
+            let s = 10.0 * x.powi(3) - 15.0 * x.powi(4) + 6.0 * x.powi(5);
+            let ds = (30.0 * x.powi(2) - 60.0 * x.powi(3) + 30.0 * x.powi(4)) / secs;
+            (t, from + (to - from) * s, (to - from) * ds)
+        })
+        .collect();
+    one(joint, &rows)
 }
 
-fn start_bridge(url: &str) -> Proc {
-    start_bridge_with(url, &config())
+#[derive(Clone)]
+struct Watch {
+    states: Arc<Mutex<Vec<(Instant, JointStateT)>>>,
+    status: Arc<Mutex<Vec<NodeStatusT>>>,
+    traj: Arc<Mutex<Vec<TrajectoryStatusT>>>,
+    /// Frames on the CAN bus carried over LCM (both ways), with when they were seen.
+    frames: Arc<Mutex<Vec<(Instant, bool, CanFrame)>>>,
+}
+
+struct Subs(#[allow(dead_code)] Vec<lcm::Subscription>);
+
+fn watch(lcm: &Lcm) -> (Watch, Subs) {
+    let w = Watch {
+        states: Arc::default(),
+        status: Arc::default(),
+        traj: Arc::default(),
+        frames: Arc::default(),
+    };
+    let (a, b, c, d, e) = (
+        w.states.clone(),
+        w.status.clone(),
+        w.traj.clone(),
+        w.frames.clone(),
+        w.frames.clone(),
+    );
+    let frames = |sink: Arc<Mutex<Vec<(Instant, bool, CanFrame)>>>, tx: bool| {
+        move |_: &lcm::RecvInfo<'_>, m: CanFrameBatchT| {
+            let now = Instant::now();
+            let mut v = sink.lock().unwrap();
+            v.extend(
+                m.frames
+                    .iter()
+                    .filter_map(|f| stride_can_lcm::msg_to_frame(f).ok())
+                    .map(|f| (now, tx, f)),
+            );
+        }
+    };
+    let subs = vec![
+        lcm.subscribe("JOINT_STATE_LEFT_LEG", move |_, m: JointStateT| {
+            a.lock().unwrap().push((Instant::now(), m))
+        })
+        .unwrap(),
+        lcm.subscribe("STRIDE_STATUS", move |_, m: NodeStatusT| {
+            b.lock().unwrap().push(m)
+        })
+        .unwrap(),
+        lcm.subscribe(
+            "JOINT_TRAJECTORY_STATUS_LEFT_LEG",
+            move |_, m: TrajectoryStatusT| c.lock().unwrap().push(m),
+        )
+        .unwrap(),
+        lcm.subscribe("CAN_LEFT_LEG_RX", frames(d, false)).unwrap(),
+        lcm.subscribe("CAN_LEFT_LEG_TX", frames(e, true)).unwrap(),
+    ];
+    for s in &subs {
+        s.set_queue_capacity(10_000).unwrap();
+    }
+    (w, Subs(subs))
+}
+
+impl Watch {
+    fn last_state(&self) -> JointStateT {
+        self.states.lock().unwrap().last().unwrap().1.clone()
+    }
+    fn bridge_said(&self, f: impl Fn(&NodeStatusT) -> bool) -> bool {
+        self.status
+            .lock()
+            .unwrap()
+            .iter()
+            .any(|s| s.node == "stride-elmo-bridge" && f(s))
+    }
+    fn traj_last(&self) -> Option<TrajectoryStatusT> {
+        self.traj.lock().unwrap().last().cloned()
+    }
+}
+
+fn wait_for(lcm: &Lcm, secs: f64, done: impl FnMut() -> bool) -> bool {
+    stride_tests::handle_until(lcm, Duration::from_secs_f64(secs), done)
 }
 
 fn start_bridge_with(url: &str, config: &std::path::Path) -> Proc {
@@ -100,6 +187,16 @@ fn start_bridge_with(url: &str, config: &std::path::Path) -> Proc {
     Proc::spawn(c)
 }
 
+fn running(lcm: &Lcm, w: &Watch) {
+    assert!(
+        wait_for(lcm, 20.0, || w
+            .bridge_said(|s| s.state == NodeStatusT::STATE_RUNNING)),
+        "the bridge never reported running"
+    );
+    // States come.
+    assert!(wait_for(lcm, 5.0, || !w.states.lock().unwrap().is_empty()));
+}
+
 #[test]
 fn a_trajectory_reaches_the_drives_and_states_come_back() {
     if !in_sandbox() {
@@ -107,109 +204,176 @@ fn a_trajectory_reaches_the_drives_and_states_come_back() {
     }
     let url = udpm_url(7751);
     let lcm = Lcm::new(&url).unwrap();
-    let w = watch(&lcm);
-    let bridge = start_bridge(&url);
-    assert!(
-        wait_for(&lcm, 10, || w
-            .status
-            .lock()
-            .unwrap()
-            .iter()
-            .any(|s| s.state == NodeStatusT::STATE_RUNNING)),
-        "the bridge never reported running"
-    );
-    // Within limits, shorter than the stream timeout: it plays to the end.
+    let (w, _s) = watch(&lcm);
+    let bridge = start_bridge_with(&url, &config());
+    running(&lcm, &w);
     let t = trajectory(0.4, 0.5);
-    lcm.publish("JOINT_TRAJECTORY_LEFT_LEG", &t).unwrap();
+    lcm.publish(TRAJECTORY, &t).unwrap();
     let last = t.positions.last().unwrap().clone();
-    let reached = wait_for(&lcm, 10, || {
-        w.states
-            .lock()
-            .unwrap()
-            .last()
-            .is_some_and(|s| within_tolerance(s, &last))
-    });
     assert!(
-        reached,
+        wait_for(&lcm, 10.0, || within_tolerance(&w.last_state(), &last)),
         "joints did not reach {last:?}: {:?}",
-        w.states.lock().unwrap().last()
+        w.last_state()
     );
-
-    // Past the knee's limit: refused whole, reported, nothing moves (the refused trajectory
-    // starts at zero, so playing any of it would show).
+    // Past the knee's limit: refused whole, reported with joint, row and figure, nothing
+    // moves (the refused trajectory starts where the joints are, so any of it would show).
     let mut bad = trajectory(0.4, 0.5);
+    for row in bad.positions.iter_mut() {
+        for (p, q) in row.iter_mut().zip(&last) {
+            *p += q;
+        }
+    }
     bad.positions[20][3] = 3.0;
-    lcm.publish("JOINT_TRAJECTORY_LEFT_LEG", &bad).unwrap();
-    assert!(wait_for(&lcm, 5, || w.status.lock().unwrap().iter().any(
-        |s| s.state == NodeStatusT::STATE_DEGRADED && s.detail.contains("trajectory rejected")
-    )));
-    wait_for(&lcm, 1, || false);
-    let after = w.states.lock().unwrap().last().unwrap().positions.clone();
+    lcm.publish(TRAJECTORY, &bad).unwrap();
+    assert!(wait_for(&lcm, 5.0, || w.bridge_said(|s| s.state
+        == NodeStatusT::STATE_DEGRADED
+        && s.detail.contains(
+            "row 20, joint left_knee: position 3.0000 rad outside"
+        ))));
+    assert!(wait_for(&lcm, 3.0, || w
+        .traj_last()
+        .is_some_and(
+            |t| t.refused == 1 && t.last_refusal.contains("row 20")
+        )));
+    wait_for(&lcm, 0.5, || false);
+    let after = w.last_state().positions;
     assert!(
         last.iter().zip(&after).all(|(a, b)| (a - b).abs() < 2e-3),
         "moved: {after:?} vs {last:?}"
     );
-
     let (st, out) = bridge.interrupt();
     assert!(st.success(), "{out}");
-    assert!(wait_for(&lcm, 5, || w
-        .status
-        .lock()
-        .unwrap()
-        .iter()
-        .any(|s| s.state == NodeStatusT::STATE_STOPPING)));
+    assert!(wait_for(&lcm, 5.0, || w
+        .bridge_said(|s| s.state == NodeStatusT::STATE_STOPPING)));
 }
 
 #[test]
-fn a_stream_that_stops_mid_motion_quick_stops_the_axes() {
+fn what_no_limit_allows_is_refused_before_it_reaches_a_drive() {
+    if !in_sandbox() {
+        return;
+    }
+    let url = udpm_url(7754);
+    let lcm = Lcm::new(&url).unwrap();
+    let (w, _s) = watch(&lcm);
+    let bridge = start_bridge_with(&url, &config());
+    running(&lcm, &w);
+    let refusals = |w: &Watch| w.traj_last().map_or(0, |t| t.refused);
+    // The findings, each of which faulted a drive for good: rows 1 ms apart at rest; a
+    // two-row PT table; a first row 0.9 rad from the joint; a joint named twice; mode 7.
+    let mut cases = [
+        one("left_hip_yaw", &[(0.0, 0.0, 0.0), (0.001, 0.5, 0.0)]),
+        {
+            let mut t = one("left_hip_roll", &[(0.0, 0.0, 0.0), (0.001, 0.45, 0.0)]);
+            t.mode = JointTrajectoryT::MODE_PT;
+            t
+        },
+        one("left_ankle_pitch", &[(0.0, 0.9, 0.0), (0.01, 0.9, 0.0)]),
+        {
+            let mut t = one("left_knee", &[(0.0, 0.0, 0.0), (0.01, 0.0, 0.0)]);
+            t.num_joints = 2;
+            t.joint_names = vec!["left_knee".into(), "left_knee".into()];
+            t.positions = vec![vec![0.0, 2.2], vec![0.0, 2.2]];
+            t.velocities = vec![vec![0.0, 0.0], vec![0.0, 0.0]];
+            t
+        },
+        {
+            let mut t = minjerk("left_knee", 0.0, 0.2, 0.5);
+            t.mode = 7;
+            t
+        },
+    ];
+    let why = [
+        "velocity 750.000 rad/s",
+        "velocity 675.000 rad/s",
+        "0.9000 rad from where the joint stands",
+        "named twice",
+        "mode 7",
+    ];
+    for (k, t) in cases.iter_mut().enumerate() {
+        t.header.sequence = k as i64;
+        lcm.publish(TRAJECTORY, t).unwrap();
+        assert!(
+            wait_for(&lcm, 3.0, || refusals(&w) == k as i64 + 1),
+            "case {k} not refused: {:?}",
+            w.traj_last()
+        );
+        let s = w.traj_last().unwrap();
+        assert!(
+            s.last_refusal.contains(why[k]),
+            "case {k}: {}",
+            s.last_refusal
+        );
+        assert_eq!(s.last_refused_sequence, k as i64);
+    }
+    wait_for(&lcm, 0.3, || false);
+    // Nothing moved, nothing faulted.
+    let s = w.last_state();
+    assert!(
+        s.positions.iter().all(|p| p.abs() < 1e-3),
+        "{:?}",
+        s.positions
+    );
+    assert!(s.faults.iter().all(|f| *f == 0), "{:?}", s.faults);
+    // And a valid move right after works.
+    lcm.publish(TRAJECTORY, &minjerk("left_knee", 0.0, 0.3, 0.5))
+        .unwrap();
+    assert!(wait_for(&lcm, 5.0, || (w.last_state().positions[3] - 0.3)
+        .abs()
+        < 1e-3));
+    let (st, out) = bridge.interrupt();
+    assert!(st.success(), "{out}");
+}
+
+#[test]
+fn a_stream_that_stops_mid_motion_decelerates_and_the_next_move_plays() {
     if !in_sandbox() {
         return;
     }
     let url = udpm_url(7752);
     let lcm = Lcm::new(&url).unwrap();
-    let w = watch(&lcm);
-    let bridge = start_bridge(&url);
-    assert!(wait_for(&lcm, 10, || w
-        .status
-        .lock()
-        .unwrap()
-        .iter()
-        .any(|s| s.state == NodeStatusT::STATE_RUNNING)));
-    // The first 0.6 s of a 2 s move, a chunk that ends in motion, then silence: after the
-    // stream timeout the axes quick-stop.
-    let mut t = trajectory(2.0, 0.5);
-    t.num_rows = 61;
-    t.time_from_start.truncate(61);
-    t.positions.truncate(61);
-    t.velocities.truncate(61);
-    lcm.publish("JOINT_TRAJECTORY_LEFT_LEG", &t).unwrap();
-    let t_full = trajectory(2.0, 0.5);
-    assert!(wait_for(&lcm, 5, || w
-        .status
-        .lock()
-        .unwrap()
-        .iter()
-        .any(|s| s.detail.contains("quick stop"))));
-    std::thread::sleep(Duration::from_millis(300));
-    wait_for(&lcm, 1, || false);
-    let knee = w.states.lock().unwrap().last().unwrap().positions[3];
-    let end = t_full.positions.last().unwrap()[3];
+    let (w, _s) = watch(&lcm);
+    let bridge = start_bridge_with(&url, &config());
+    running(&lcm, &w);
+    // The finding: a 1.0 s chunk ending at 0.4 rad/s, then silence. It plays to its end
+    // (0.2 rad), then the ankle decelerates at its limit (30 rad/s²: 0.0027 rad more).
+    let rows: Vec<(f64, f64, f64)> = (0..=100)
+        .map(|k| {
+            let t = k as f64 * 0.01;
+            (t, 0.2 * t * t, 0.4 * t)
+        })
+        .collect();
+    lcm.publish(TRAJECTORY, &one("left_ankle_roll", &rows))
+        .unwrap();
+    let t0 = Instant::now();
+    assert!(wait_for(&lcm, 5.0, || w
+        .bridge_said(|s| s.detail.contains("ran dry"))));
+    wait_for(&lcm, 0.5, || false);
+    let ankle = w.last_state().positions[5];
+    assert!(t0.elapsed() > Duration::from_millis(1000), "stopped early");
     assert!(
-        knee < end - 0.05,
-        "the knee should have stopped short of {end}: {knee}"
+        (ankle - (0.2 + 0.16 / 60.0)).abs() < 2e-3,
+        "ankle at {ankle}"
     );
+    assert!(w.traj_last().is_some_and(|t| t.stream_stops == 1));
+    // The next valid move of another joint plays (it was quick-stopped, and never moved
+    // again, in the finding).
+    lcm.publish(TRAJECTORY, &minjerk("left_knee", 0.0, 1.0, 1.5))
+        .unwrap();
+    assert!(
+        wait_for(&lcm, 5.0, || (w.last_state().positions[3] - 1.0).abs()
+            < 1e-3),
+        "the knee did not move: {:?}",
+        w.last_state()
+    );
+    assert!(!w.bridge_said(|s| s.state == NodeStatusT::STATE_FAULT));
     let (st, out) = bridge.interrupt();
     assert!(st.success(), "{out}");
 }
 
-#[test]
-fn the_whole_chain_bridge_lcm_gateway_pty_dongle_drives() {
-    if !in_sandbox() {
-        return;
-    }
-    let url = udpm_url(7753);
-    let dir = tempfile::tempdir().unwrap();
-    // Fake dongle + six fake drives, on a pseudo-terminal.
+/// The chain: fake dongle and six fake drives on a pty, stride-usb2can, the bridge on
+/// `lcm:left_leg`; returns (rig, gateway, bridge, lcm, watch, subs).
+fn chain(port: u16, dir: &tempfile::TempDir) -> (Proc, Proc, Proc, Lcm, Watch, Subs, String) {
+    let url = udpm_url(port);
     let pty_file = dir.path().join("pty");
     let rig = {
         let mut c = Command::new(bin("fake-can-rig"));
@@ -221,7 +385,6 @@ fn the_whole_chain_bridge_lcm_gateway_pty_dongle_drives() {
         std::thread::sleep(Duration::from_millis(10));
     }
     let pty = std::fs::read_to_string(&pty_file).unwrap();
-    // The gateway puts the dongle's bus on LCM.
     let dump = dir.path().join("candump.log");
     let gateway = {
         let mut c = Command::new(bin("stride-usb2can"));
@@ -239,59 +402,233 @@ fn the_whole_chain_bridge_lcm_gateway_pty_dongle_drives() {
         .arg(&dump);
         Proc::spawn(c)
     };
-    // The bridge reaches the drives through LCM.
-    // Every frame crosses LCM, the gateway and the serial line: allow the stream more time.
     let text = std::fs::read_to_string(config())
         .unwrap()
-        .replace("bus = \"sim\"", "bus = \"lcm:left_leg\"")
-        .replace("stream_timeout_ms = 500", "stream_timeout_ms = 5000");
+        .replace("bus = \"sim\"", "bus = \"lcm:left_leg\"");
     let cfg = dir.path().join("leg.toml");
     std::fs::write(&cfg, text).unwrap();
     let lcm = Lcm::new(&url).unwrap();
-    let w = watch(&lcm);
+    let (w, s) = watch(&lcm);
     std::thread::sleep(Duration::from_millis(500));
     let bridge = start_bridge_with(&url, &cfg);
-    assert!(
-        wait_for(&lcm, 20, || w.status.lock().unwrap().iter().any(|s| s.node
-            == "stride-elmo-bridge"
-            && s.state == NodeStatusT::STATE_RUNNING)),
-        "the bridge never came up through the chain"
-    );
+    running(&lcm, &w);
+    (rig, gateway, bridge, lcm, w, s, url)
+}
+
+/// Reads an object of drive `node` by SDO through the gateway.
+fn sdo_read(lcm: &Lcm, node: u8, index: u16, sub: u8) -> Vec<u8> {
+    let mut bus = stride_can_lcm::LcmBus::new(lcm, "left_leg").unwrap();
+    stride_canopen_host::sdo_read(
+        &mut bus,
+        NodeId::new(node).unwrap(),
+        index,
+        sub,
+        Duration::from_millis(500),
+        &mut stride_canopen_host::ignore,
+    )
+    .unwrap()
+}
+
+fn drive_state(lcm: &Lcm, node: u8) -> DriveState {
+    let d = sdo_read(lcm, node, 0x6041, 0);
+    DriveState::from_statusword(u16::from_le_bytes([d[0], d[1]]))
+}
+
+fn drive_position(lcm: &Lcm, node: u8) -> i32 {
+    let d = sdo_read(lcm, node, 0x6064, 0);
+    i32::from_le_bytes([d[0], d[1], d[2], d[3]])
+}
+
+#[test]
+fn the_whole_chain_bridge_lcm_gateway_pty_dongle_drives() {
+    if !in_sandbox() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (rig, gateway, bridge, lcm, w, _s, _) = chain(7753, &dir);
     let t = trajectory(0.4, 0.5);
-    lcm.publish("JOINT_TRAJECTORY_LEFT_LEG", &t).unwrap();
+    lcm.publish(TRAJECTORY, &t).unwrap();
     let last = t.positions.last().unwrap().clone();
     assert!(
-        wait_for(&lcm, 15, || w
-            .states
-            .lock()
-            .unwrap()
-            .last()
-            .is_some_and(|s| within_tolerance(s, &last))),
-        "joints did not reach the end through the chain: {:?}",
-        w.states.lock().unwrap().last()
+        wait_for(&lcm, 15.0, || within_tolerance(&w.last_state(), &last)),
+        "joints did not reach the end through the chain: {:?} {:?} {:?}",
+        w.last_state(),
+        w.traj_last(),
+        w.status.lock().unwrap().last()
     );
-    // A drive in fault: its emergency is published in the bridge's status.
+    // A drive in fault: its emergency is published, and every axis is stopped.
     rig.signal(libc::SIGUSR1);
     assert!(
-        wait_for(&lcm, 5, || w
-            .status
-            .lock()
-            .unwrap()
-            .iter()
-            .any(|s| s.node == "stride-elmo-bridge"
+        wait_for(&lcm, 5.0, || w
+            .bridge_said(|s| s.state == NodeStatusT::STATE_FAULT
                 && s.detail.contains("left_hip_yaw: emergency 0x2310"))),
         "the fault was not published"
     );
+    assert!(wait_for(&lcm, 3.0, || w
+        .traj_last()
+        .is_some_and(|t| t.state == TrajectoryStatusT::STATE_STOPPED
+            && t.recovery.contains("next valid trajectory"))));
+    // The next valid trajectory, from where the joints stand, resets the fault and moves.
+    let mut back = trajectory(0.4, -0.5);
+    for row in back.positions.iter_mut() {
+        for (p, q) in row.iter_mut().zip(&last) {
+            *p += q;
+        }
+    }
+    lcm.publish(TRAJECTORY, &back).unwrap();
+    let home = back.positions.last().unwrap().clone();
+    assert!(
+        wait_for(&lcm, 15.0, || within_tolerance(&w.last_state(), &home)),
+        "no motion after the fault: {:?} {:?}",
+        w.last_state(),
+        w.traj_last()
+    );
+    assert!(wait_for(&lcm, 3.0, || w
+        .bridge_said(|s| s.state == NodeStatusT::STATE_RUNNING)));
     let (st, out) = bridge.interrupt();
     assert!(st.success(), "{out}");
     let (st, out) = gateway.interrupt();
     assert!(st.success(), "{out}");
     assert!(out.contains("frames from the wire"), "{out}");
     drop(rig);
-    let dump = std::fs::read_to_string(&dump).unwrap();
+    let dump = std::fs::read_to_string(dir.path().join("candump.log")).unwrap();
     assert!(
         dump.lines().any(|l| l.contains(" left_leg 601#40")),
         "no SDO read to node 1 in the candump log"
     );
     assert!(dump.lines().count() > 100);
+}
+
+#[test]
+fn a_bridge_killed_mid_motion_leaves_every_axis_stopped_within_the_watchdog() {
+    if !in_sandbox() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (_rig, _gateway, bridge, lcm, w, _s, _) = chain(7755, &dir);
+    let watchdog = Duration::from_millis(bridge_config().drive_watchdog_ms);
+    // A 3 s move of every joint, killed 1 s in.
+    lcm.publish(TRAJECTORY, &trajectory(3.0, 0.8)).unwrap();
+    assert!(wait_for(&lcm, 5.0, || w.last_state().positions[3] > 0.1));
+    wait_for(&lcm, 0.5, || false);
+    bridge.signal(libc::SIGKILL);
+    let killed = Instant::now();
+    let (st, _) = bridge.wait(Duration::from_secs(5));
+    assert!(!st.success());
+    // Every drive reports the heartbeat it watched stopped (EMCY 0x8130), and quick-stops.
+    let stops = || {
+        let f = w.frames.lock().unwrap();
+        let mut nodes: Vec<(u8, Instant)> = f
+            .iter()
+            .filter(|(t, tx, _)| !tx && *t > killed)
+            .filter_map(|(t, _, f)| Emcy::decode(f).ok().map(|e| (e, *t)))
+            .filter(|(e, _)| e.code == Emcy::HEARTBEAT_ERROR)
+            .map(|(e, t)| (e.node.get(), t))
+            .collect();
+        nodes.sort();
+        nodes.dedup_by_key(|n| n.0);
+        nodes
+    };
+    assert!(wait_for(&lcm, 3.0, || stops().len() == 6), "{:?}", stops());
+    let worst = stops()
+        .iter()
+        .map(|(_, t)| t.saturating_duration_since(killed))
+        .max()
+        .unwrap();
+    // The bridge's last heartbeat (node 127) on its way to the drives.
+    let last_beat = w
+        .frames
+        .lock()
+        .unwrap()
+        .iter()
+        .filter(|(_, tx, f)| *tx && f.raw_id() == 0x77f)
+        .map(|(t, _, _)| *t)
+        .max()
+        .unwrap();
+    let silence = stops()
+        .iter()
+        .map(|(_, t)| t.saturating_duration_since(last_beat))
+        .max()
+        .unwrap();
+    eprintln!(
+        "the slowest drive stopped itself {worst:?} after the kill, {silence:?} after the last \
+         heartbeat (watchdog {watchdog:?})"
+    );
+    // Within the watchdog of the last heartbeat, give or take the frames' way through the
+    // gateway (both are seen through it).
+    assert!(
+        silence <= watchdog + Duration::from_millis(10),
+        "{silence:?}"
+    );
+    assert!(worst <= watchdog + Duration::from_millis(30), "{worst:?}");
+    // Every axis is in quick stop and stands still (it moved on buffered rows for 0.54 rad
+    // in the finding).
+    // (The motor settles behind its command for a few milliseconds after the stop.)
+    std::thread::sleep(Duration::from_millis(50));
+    let before: Vec<i32> = (1..=6).map(|n| drive_position(&lcm, n)).collect();
+    std::thread::sleep(Duration::from_millis(300));
+    for n in 1..=6u8 {
+        assert_eq!(
+            drive_state(&lcm, n),
+            DriveState::QuickStopActive,
+            "node {n}"
+        );
+        let p = drive_position(&lcm, n);
+        let was = before[n as usize - 1];
+        assert!((p - was).abs() <= 2, "node {n} moved from {was} to {p}");
+    }
+}
+
+#[test]
+fn shutdown_decelerates_then_disables_every_drive() {
+    if !in_sandbox() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (_rig, _gateway, bridge, lcm, w, _s, _) = chain(7756, &dir);
+    lcm.publish(TRAJECTORY, &trajectory(3.0, 0.8)).unwrap();
+    assert!(wait_for(&lcm, 5.0, || w.last_state().positions[3] > 0.2));
+    let stopping = Instant::now();
+    let (st, out) = bridge.interrupt();
+    assert!(st.success(), "{out}");
+    wait_for(&lcm, 0.5, || false);
+    let frames = w.frames.lock().unwrap().clone();
+    let after: Vec<&(Instant, bool, CanFrame)> =
+        frames.iter().filter(|(t, _, _)| *t >= stopping).collect();
+    // First the quick stop (controlword 0x0002) to every drive, then the disable
+    // (controlword 0x0000 by SDO), never the other way round.
+    let first = |pred: &dyn Fn(&CanFrame) -> bool| {
+        after
+            .iter()
+            .position(|(_, tx, f)| *tx && pred(f))
+            .unwrap_or(usize::MAX)
+    };
+    for n in 1..=6u32 {
+        let qs = first(&|f| f.raw_id() == 0x200 + n && f.data() == [0x02, 0x00]);
+        let off =
+            first(&|f| f.raw_id() == 0x600 + n && f.data()[..6] == [0x2b, 0x40, 0x60, 0, 0, 0]);
+        assert!(
+            qs < off && off < usize::MAX,
+            "node {n}: quick stop {qs}, disable {off}"
+        );
+    }
+    // The knee decelerated after the quick stop: its position kept changing for a while.
+    let knee: Vec<(Instant, i32)> = after
+        .iter()
+        .filter(|(_, tx, f)| !tx && f.raw_id() == 0x184)
+        .map(|(t, _, f)| (*t, i32::from_le_bytes(f.data()[2..6].try_into().unwrap())))
+        .collect();
+    assert!(knee.len() > 3, "{knee:?}");
+    assert!(
+        knee[knee.len() - 1].1 != knee[0].1,
+        "no deceleration: {knee:?}"
+    );
+    // And every drive ends disabled.
+    for n in 1..=6u8 {
+        assert_eq!(
+            drive_state(&lcm, n),
+            DriveState::SwitchOnDisabled,
+            "node {n}"
+        );
+    }
 }

@@ -1,17 +1,23 @@
-//! The logic of `stride-elmo-bridge`: configuration, message conversion and the stream
-//! watchdog. The CANopen work is `stride-elmo`'s.
+//! The logic of `stride-elmo-bridge`: its configuration, LCM trajectories to the master's and
+//! joint states back, and the bridge as a state machine ([`Bridge`]): what it does with each
+//! trajectory, and with each event of the drives (a fault or a lost drive stops every axis;
+//! a bus failure or a reset brings the drives up again), and what it reports, in its health
+//! and in `stride.trajectory_status_t`. The CANopen work is `stride-elmo`'s.
 
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use stride_elmo::{JointConfig, JointState, Trajectory};
-use stride_lcmtypes::stride::{HeaderT, JointStateT, JointTrajectoryT};
+use stride_canbus::CanBus;
+use stride_elmo::{Event, JointConfig, Master, MasterConfig, Start, Trajectory};
+use stride_lcmtypes::stride::{
+    HeaderT, JointStateT, JointTrajectoryT, NodeStatusT, TrajectoryStatusT,
+};
 
 /// The bridge's TOML configuration.
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BridgeConfig {
-    /// `sim` (fake drives in this process), `slcan:PATH` (a USB2CAN dongle) or `lcm:NAME`
-    /// (a CAN bus behind a stride-usb2can gateway).
+    /// `sim` (fake drives in this process), `slcan:PATH` (a USB2CAN dongle), `lcm:NAME` (a
+    /// CAN bus behind a stride-usb2can gateway) or `socketcan:IFACE` (with the feature).
     pub bus: String,
     /// CAN bit rate.
     pub bitrate: u32,
@@ -19,11 +25,26 @@ pub struct BridgeConfig {
     pub trajectory_channel: String,
     /// Channel of outgoing `stride.joint_state_t`.
     pub state_channel: String,
+    /// Channel of outgoing `stride.trajectory_status_t`.
+    pub trajectory_status_channel: String,
     /// Joint state rate (and SYNC rate), Hz.
     pub state_rate_hz: f64,
-    /// Quick stop when the last trajectory ended in motion and no next one came for this long
-    /// (0: never).
-    pub stream_timeout_ms: u64,
+    /// How far ahead of the drives' play rows are sent, ms: a trajectory replaces what is
+    /// queued no sooner than this after it arrives, and a stream's next chunk has to arrive
+    /// this long before the queued motion ends, or the joints stop.
+    pub lookahead_ms: u64,
+    /// The longest a trajectory may reach ahead of now, ms: the queue's bound.
+    pub max_queue_ms: u64,
+    /// The drives quick-stop on their own when the bridge's heartbeat stops for this long,
+    /// ms (their consumer heartbeat time, 0x1016): a killed bridge, a pulled cable.
+    pub drive_watchdog_ms: u64,
+    /// Period of the bridge's own heartbeat on the bus, ms.
+    pub heartbeat_ms: u64,
+    /// The node id of the bridge's heartbeat (no drive's).
+    pub master_node: u8,
+    /// On shutdown, the longest to wait for the joints to stand still after the quick stop
+    /// before the torque goes off, ms.
+    pub stop_timeout_ms: u64,
     /// `pvt` (Elmo PVT tables, cubic), `pt` (Elmo PT tables: positions every `pt_period_ms`,
     /// cubic) or `ip` (CiA 402 interpolated position, linear, fixed period `ip_period_ms`).
     pub motion: String,
@@ -45,8 +66,14 @@ impl Default for BridgeConfig {
             bitrate: 1_000_000,
             trajectory_channel: "JOINT_TRAJECTORY".into(),
             state_channel: "JOINT_STATE".into(),
+            trajectory_status_channel: "JOINT_TRAJECTORY_STATUS".into(),
             state_rate_hz: 100.0,
-            stream_timeout_ms: 500,
+            lookahead_ms: 100,
+            max_queue_ms: 10_000,
+            drive_watchdog_ms: 100,
+            heartbeat_ms: 20,
+            master_node: 127,
+            stop_timeout_ms: 2000,
             motion: "pvt".into(),
             ip_period_ms: 10,
             pt_period_ms: 10,
@@ -57,10 +84,15 @@ impl Default for BridgeConfig {
 }
 
 impl BridgeConfig {
-    /// Checks what serde cannot: at least one joint, sane rates.
+    /// Checks what serde cannot: at least one joint, sane rates and times (the joints' own
+    /// limits and units are checked by the master).
     pub fn check(&self) -> Result<(), String> {
         if self.joint.is_empty() {
-            return Err("the configuration lists no [[joint]]".into());
+            return Err(
+                "the configuration lists no [[joint]] (give one with --config, e.g. \
+                 config/robots/archie-left-leg.toml)"
+                    .into(),
+            );
         }
         self.motion()?;
         if !(1.0..=1000.0).contains(&self.state_rate_hz) {
@@ -69,34 +101,24 @@ impl BridgeConfig {
                 self.state_rate_hz
             ));
         }
-        for j in &self.joint {
-            if !(j.min_position < j.max_position
-                && j.max_velocity > 0.0
-                && j.max_acceleration > 0.0)
-            {
-                return Err(format!(
-                    "joint {}: limits must be ordered and positive",
-                    j.name
-                ));
-            }
-            if !(j.counts_per_rev > 0.0 && j.gear_ratio != 0.0) {
-                return Err(format!(
-                    "joint {}: counts_per_rev and gear_ratio must be set",
-                    j.name
-                ));
-            }
-            if !(j.tolerance > 0.0 && j.tolerance < j.max_position - j.min_position) {
-                return Err(format!(
-                    "joint {}: tolerance {} rad must be positive and less than the joint's range",
-                    j.name, j.tolerance
-                ));
-            }
+        if self.heartbeat_ms == 0 || self.drive_watchdog_ms < 2 * self.heartbeat_ms {
+            return Err(format!(
+                "drive_watchdog_ms {} must be at least two heartbeats ({} ms each)",
+                self.drive_watchdog_ms, self.heartbeat_ms
+            ));
+        }
+        if self.drive_watchdog_ms > u16::MAX as u64 {
+            return Err("drive_watchdog_ms is at most 65535".into());
+        }
+        if self.lookahead_ms == 0 || self.max_queue_ms < self.lookahead_ms {
+            return Err(format!(
+                "lookahead_ms {} must be positive and max_queue_ms {} at least that",
+                self.lookahead_ms, self.max_queue_ms
+            ));
         }
         Ok(())
     }
-}
 
-impl BridgeConfig {
     /// The motion mode the configuration asks for.
     pub fn motion(&self) -> Result<stride_elmo::Motion, String> {
         match self.motion.as_str() {
@@ -113,76 +135,79 @@ impl BridgeConfig {
             )),
         }
     }
-}
 
-/// A `stride.joint_trajectory_t` as the master's trajectory (velocities only in PVT mode).
-pub fn trajectory_from_msg(m: &JointTrajectoryT) -> Trajectory {
-    Trajectory {
-        joints: m.joint_names.clone(),
-        times: m.time_from_start.clone(),
-        positions: m.positions.clone(),
-        velocities: if m.mode == JointTrajectoryT::MODE_PVT {
-            m.velocities.clone()
-        } else {
-            Vec::new()
-        },
+    /// The master's settings.
+    pub fn master(&self) -> Result<MasterConfig, String> {
+        let ms = Duration::from_millis;
+        Ok(MasterConfig {
+            motion: self.motion()?,
+            master_node: self.master_node,
+            master_heartbeat: ms(self.heartbeat_ms),
+            drive_watchdog: ms(self.drive_watchdog_ms),
+            lookahead: ms(self.lookahead_ms),
+            max_queue: ms(self.max_queue_ms),
+            sync_period: Duration::from_secs_f64(1.0 / self.state_rate_hz),
+            stop_timeout: ms(self.stop_timeout_ms),
+            ..MasterConfig::default()
+        })
     }
 }
 
-/// The joint states as a `stride.joint_state_t` (velocity, current and temperature NaN: the
-/// state PDO carries position and statusword only; fault bit of the statusword per joint).
-pub fn state_msg(states: &[(&str, JointState)], header: HeaderT) -> JointStateT {
+/// A `stride.joint_trajectory_t` as the master's trajectory: its mode (PT rows carry no
+/// velocities) and queueing honoured, or refused.
+pub fn trajectory_from_msg(m: &JointTrajectoryT) -> Result<Trajectory, String> {
+    let velocities = match m.mode {
+        JointTrajectoryT::MODE_PVT => m.velocities.clone(),
+        JointTrajectoryT::MODE_PT => Vec::new(),
+        other => {
+            return Err(format!(
+                "mode {other}: use {} (PT) or {} (PVT)",
+                JointTrajectoryT::MODE_PT,
+                JointTrajectoryT::MODE_PVT
+            ))
+        }
+    };
+    let start = match (m.queue, m.start_utime) {
+        (JointTrajectoryT::QUEUE_REPLACE, 0) => Start::Now,
+        (JointTrajectoryT::QUEUE_REPLACE, t) => Start::At(t),
+        (JointTrajectoryT::QUEUE_APPEND, 0) => Start::Append,
+        (JointTrajectoryT::QUEUE_APPEND, _) => {
+            return Err("an appended trajectory starts where the queue ends: start_utime 0".into())
+        }
+        (other, _) => {
+            return Err(format!(
+                "queue {other}: use {} (replace) or {} (append)",
+                JointTrajectoryT::QUEUE_REPLACE,
+                JointTrajectoryT::QUEUE_APPEND
+            ))
+        }
+    };
+    Ok(Trajectory {
+        joints: m.joint_names.clone(),
+        times: m.time_from_start.clone(),
+        positions: m.positions.clone(),
+        velocities,
+        start,
+    })
+}
+
+/// The joint states as a `stride.joint_state_t` (current and temperature NaN: the state PDO
+/// carries position and statusword; the velocity is the positions' change per SYNC; the
+/// fault bit of the statusword per joint).
+pub fn state_msg(states: &[(&str, stride_elmo::JointState)], header: HeaderT) -> JointStateT {
     let n = states.len();
     JointStateT {
         header,
         num_joints: n as i32,
         names: states.iter().map(|(name, _)| name.to_string()).collect(),
         positions: states.iter().map(|(_, s)| s.position).collect(),
-        velocities: vec![f64::NAN; n],
+        velocities: states.iter().map(|(_, s)| s.velocity).collect(),
         currents: vec![f64::NAN; n],
         temperatures: vec![f32::NAN; n],
         faults: states
             .iter()
-            .map(|(_, s)| ((s.statusword >> 3) & 1) as i32)
+            .map(|(_, s)| stride_canopen::ds402::fault_bit(s.statusword) as i32)
             .collect(),
-    }
-}
-
-/// Decides when a trajectory stream has stopped.
-#[derive(Debug, Clone)]
-pub struct Watchdog {
-    timeout: Option<Duration>,
-    last: Option<Instant>,
-    tripped: bool,
-}
-
-impl Watchdog {
-    /// A watchdog with `timeout_ms` (0: disabled).
-    pub fn new(timeout_ms: u64) -> Watchdog {
-        Watchdog {
-            timeout: (timeout_ms > 0).then(|| Duration::from_millis(timeout_ms)),
-            last: None,
-            tripped: false,
-        }
-    }
-
-    /// A trajectory message arrived.
-    pub fn feed(&mut self, now: Instant) {
-        self.last = Some(now);
-        self.tripped = false;
-    }
-
-    /// True once (until fed again) when motion is under way (`idle` false) and the stream
-    /// has been silent for longer than the timeout.
-    pub fn expired(&mut self, now: Instant, idle: bool) -> bool {
-        let (Some(t), Some(last)) = (self.timeout, self.last) else {
-            return false;
-        };
-        if idle || self.tripped || now.saturating_duration_since(last) <= t {
-            return false;
-        }
-        self.tripped = true;
-        true
     }
 }
 
@@ -227,10 +252,314 @@ impl Recovery {
         self.next.is_some_and(|t| now >= t)
     }
 
+    /// The current delay between attempts.
+    pub fn delay(&self) -> Duration {
+        self.delay
+    }
+
     /// The drives are up again: back to the first delay.
     pub fn succeeded(&mut self) {
         self.next = None;
         self.delay = self.first;
+    }
+}
+
+/// The node's health: one of `NodeStatusT::STATE_*` and why.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Health {
+    /// The state.
+    pub state: i8,
+    /// Why, in words.
+    pub detail: String,
+}
+
+/// What the bridge logs, each once: a warning or an error, in one line.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Note {
+    /// Worth a warning.
+    Warn(String),
+    /// An error.
+    Error(String),
+    /// For the record.
+    Info(String),
+}
+
+/// How the bridge comes back from a stop, as its status says.
+pub const REARM: &str =
+    "automatic: the next valid trajectory, starting where the joints stand, enables the drives again";
+
+/// The bridge: the master, and what to do when.
+pub struct Bridge<B: CanBus> {
+    master: Master<B>,
+    recovery: Recovery,
+    health: Health,
+    /// Why the drives are down (bus, reset), while recovery runs.
+    down: Option<String>,
+    last_refusal: String,
+    last_refused: i64,
+    last_accepted: i64,
+    /// Trajectories refused before the master saw them (a mode, the drives down).
+    refused_here: u64,
+    /// Something a status should say at once.
+    changed: bool,
+}
+
+fn ok() -> Health {
+    Health {
+        state: NodeStatusT::STATE_RUNNING,
+        detail: String::new(),
+    }
+}
+
+impl<B: CanBus> Bridge<B> {
+    /// A bridge around `master` (brought up).
+    pub fn new(master: Master<B>, recovery_delay_ms: u64) -> Bridge<B> {
+        Bridge {
+            master,
+            recovery: Recovery::new(recovery_delay_ms),
+            health: ok(),
+            down: None,
+            last_refusal: String::new(),
+            last_refused: -1,
+            last_accepted: -1,
+            refused_here: 0,
+            changed: true,
+        }
+    }
+
+    /// The master.
+    pub fn master(&self) -> &Master<B> {
+        &self.master
+    }
+
+    /// The node's health now.
+    pub fn health(&self) -> &Health {
+        &self.health
+    }
+
+    /// When the bridge next has something to do.
+    pub fn next_wake(&self) -> Instant {
+        self.master.next_wake()
+    }
+
+    fn set(&mut self, state: i8, detail: String) {
+        self.health = Health { state, detail };
+        self.changed = true;
+    }
+
+    /// A trajectory from the bus: converted, checked and queued, or refused whole (the
+    /// reason in the health and the status, counted).
+    pub fn on_trajectory(&mut self, m: &JointTrajectoryT, now: Instant) -> Vec<Note> {
+        if let Some(why) = &self.down {
+            let e = format!("trajectory refused: the drives are down ({why})");
+            self.refused_here += 1;
+            self.refused(m, e.clone());
+            return vec![Note::Warn(e)];
+        }
+        let t = match trajectory_from_msg(m) {
+            Ok(t) => t,
+            Err(e) => {
+                let e = format!("trajectory refused: {e}");
+                self.refused_here += 1;
+                self.refused(m, e.clone());
+                return vec![Note::Warn(e)];
+            }
+        };
+        match self.master.load(&t, now) {
+            Ok(a) => {
+                self.last_accepted = m.header.sequence;
+                if a.rearmed || self.health.state != NodeStatusT::STATE_RUNNING {
+                    self.set(NodeStatusT::STATE_RUNNING, String::new());
+                }
+                if a.rearmed {
+                    vec![Note::Info("drives enabled again".into())]
+                } else {
+                    Vec::new()
+                }
+            }
+            Err(e) => {
+                let e = format!("trajectory refused: {e}");
+                self.refused(m, e.clone());
+                vec![Note::Warn(e)]
+            }
+        }
+    }
+
+    fn refused(&mut self, m: &JointTrajectoryT, why: String) {
+        self.last_refusal = why.clone();
+        self.last_refused = m.header.sequence;
+        if self.master.status().stopped.is_none() && self.down.is_none() {
+            self.set(NodeStatusT::STATE_DEGRADED, why);
+        } else {
+            self.changed = true;
+        }
+    }
+
+    /// Stops every axis for `why` (the drives stay stopped until the next valid trajectory).
+    fn stop(&mut self, why: String, state: i8, notes: &mut Vec<Note>) {
+        for e in self.master.quick_stop(&why) {
+            notes.push(Note::Error(format!("quick stop: {e}")));
+        }
+        notes.push(Note::Error(format!("{why}: every axis quick-stopped")));
+        self.set(state, format!("{why}: quick-stopped; {REARM}"));
+    }
+
+    /// One cycle: recovery when due, the master's pump, and what its events mean.
+    pub fn tick(&mut self, now: Instant) -> Vec<Note> {
+        let mut notes = Vec::new();
+        if self.recovery.pending() {
+            if !self.recovery.due(now) {
+                return notes;
+            }
+            match self.master.recover() {
+                Ok(()) => {
+                    self.recovery.succeeded();
+                    self.down = None;
+                    notes.push(Note::Info("drives up again".into()));
+                    self.set(NodeStatusT::STATE_RUNNING, String::new());
+                }
+                Err(e) => {
+                    self.recovery.failed(Instant::now());
+                    let why = self.down.clone().unwrap_or_default();
+                    notes.push(Note::Warn(format!("drives still down: {e}")));
+                    self.set(
+                        NodeStatusT::STATE_FAULT,
+                        format!("{why}; bringing the drives up again: {e}"),
+                    );
+                    return notes;
+                }
+            }
+        }
+        if let Err(e) = self.master.pump(now) {
+            // Bus-off or a dead interface: the drives stop on their own without the
+            // bridge's heartbeat; they are brought up again once the bus answers.
+            let why = format!("CAN: {e}");
+            notes.push(Note::Error(format!("CAN cycle failed: {e}")));
+            self.down = Some(why.clone());
+            self.recovery.failed(now);
+            self.set(
+                NodeStatusT::STATE_FAULT,
+                format!("{why}; bringing the drives up again when the bus answers"),
+            );
+            return notes;
+        }
+        for e in self.master.take_events() {
+            match e {
+                Event::Emergency { joint, text, emcy } => {
+                    let why = format!("{joint}: emergency {:#06x} ({text})", emcy.code);
+                    self.stop(why, NodeStatusT::STATE_FAULT, &mut notes);
+                }
+                Event::Underflow { joint } => {
+                    let why = format!("{joint} ran out of rows while moving");
+                    self.stop(why, NodeStatusT::STATE_FAULT, &mut notes);
+                }
+                Event::InterpreterError {
+                    joint,
+                    command,
+                    code,
+                } => {
+                    let why = format!("{joint}: the drive refused {command} (error {code})");
+                    self.stop(why, NodeStatusT::STATE_FAULT, &mut notes);
+                }
+                Event::HeartbeatLost { joint } => {
+                    let why = format!("{joint}: heartbeat lost");
+                    self.stop(why.clone(), NodeStatusT::STATE_FAULT, &mut notes);
+                    self.down = Some(why.clone());
+                    self.recovery.failed(now);
+                    self.set(
+                        NodeStatusT::STATE_FAULT,
+                        format!("{why}; bringing the drives up again when it answers"),
+                    );
+                }
+                Event::Rebooted { joint } => {
+                    let why = format!("{joint}: drive reset");
+                    self.stop(why.clone(), NodeStatusT::STATE_FAULT, &mut notes);
+                    self.down = Some(why.clone());
+                    self.recovery.failed(now);
+                    self.set(
+                        NodeStatusT::STATE_FAULT,
+                        format!("{why}; bringing the drives up again"),
+                    );
+                }
+                Event::StreamStopped { joints } => {
+                    let why = format!(
+                        "trajectory stream ran dry: {} decelerating to a stop",
+                        joints.join(", ")
+                    );
+                    notes.push(Note::Warn(why.clone()));
+                    if self.health.state == NodeStatusT::STATE_RUNNING {
+                        self.set(NodeStatusT::STATE_DEGRADED, why);
+                    }
+                }
+            }
+        }
+        notes
+    }
+
+    /// The joint states.
+    pub fn states(&self, header: HeaderT) -> JointStateT {
+        state_msg(&self.master.states(), header)
+    }
+
+    /// True once when a status should go out at once.
+    pub fn take_changed(&mut self) -> bool {
+        std::mem::take(&mut self.changed)
+    }
+
+    /// The trajectory status.
+    pub fn status(&self, header: HeaderT, node: &str) -> TrajectoryStatusT {
+        let s = self.master.status();
+        let c = s.counters;
+        let (state, reason, recovery) = if let Some(why) = &self.down {
+            (
+                TrajectoryStatusT::STATE_RECOVERING,
+                why.clone(),
+                format!(
+                    "automatic: the drives are brought up again when they answer (next try \
+                     within {:.1} s)",
+                    self.recovery.delay().as_secs_f64()
+                ),
+            )
+        } else if let Some(why) = &s.stopped {
+            (TrajectoryStatusT::STATE_STOPPED, why.clone(), REARM.into())
+        } else if s.queued_until.is_some() || !self.master.idle() {
+            (
+                TrajectoryStatusT::STATE_MOVING,
+                String::new(),
+                String::new(),
+            )
+        } else {
+            (TrajectoryStatusT::STATE_IDLE, String::new(), String::new())
+        };
+        let wall = |t: Instant| {
+            let ahead = t.saturating_duration_since(Instant::now());
+            (SystemTime::now() + ahead)
+                .duration_since(UNIX_EPOCH)
+                .map_or(0, |d| d.as_micros() as i64)
+        };
+        TrajectoryStatusT {
+            header,
+            node: node.to_owned(),
+            state,
+            reason,
+            recovery,
+            queued_until_utime: s.queued_until.map_or(0, wall),
+            accepted: c.accepted as i64,
+            refused: (c.refused + self.refused_here) as i64,
+            replaced_rows: c.replaced_rows as i64,
+            dropped_rows: c.dropped_rows as i64,
+            stream_stops: c.stream_stops as i64,
+            underflows: c.underflows as i64,
+            rearms: c.rearms as i64,
+            last_refusal: self.last_refusal.clone(),
+            last_refused_sequence: self.last_refused,
+            last_accepted_sequence: self.last_accepted,
+        }
+    }
+
+    /// The shutdown: decelerate, wait for standstill, then the torque off.
+    pub fn shutdown(&mut self) -> stride_elmo::Shutdown {
+        self.master.shutdown()
     }
 }
 
@@ -249,25 +578,13 @@ mod tests {
         cfg.check().unwrap();
         assert_eq!(cfg.joint.len(), 6);
         assert_eq!(cfg.joint[3].name, "left_knee");
+        assert!(BridgeConfig::default()
+            .check()
+            .unwrap_err()
+            .contains("--config"));
         let mut bad = cfg.clone();
-        bad.joint[0].max_position = -1.0;
+        bad.drive_watchdog_ms = 10;
         assert!(bad.check().is_err());
-        assert!(BridgeConfig::default().check().is_err());
-    }
-
-    #[test]
-    fn watchdog_trips_once_when_the_stream_stops_mid_motion() {
-        let t0 = Instant::now();
-        let mut w = Watchdog::new(100);
-        assert!(!w.expired(t0 + Duration::from_secs(5), false)); // never fed
-        w.feed(t0);
-        assert!(!w.expired(t0 + Duration::from_millis(50), false));
-        assert!(!w.expired(t0 + Duration::from_millis(200), true)); // idle: nothing to stop
-        assert!(w.expired(t0 + Duration::from_millis(200), false));
-        assert!(!w.expired(t0 + Duration::from_millis(300), false)); // once
-        w.feed(t0 + Duration::from_millis(300));
-        assert!(!w.expired(t0 + Duration::from_millis(350), false));
-        assert!(!Watchdog::new(0).expired(t0 + Duration::from_secs(9), false));
     }
 
     #[test]
@@ -291,10 +608,11 @@ mod tests {
         assert!(r.due(t0 + ms(100)));
     }
 
-    #[test]
-    fn conversions() {
-        let m = JointTrajectoryT {
-            mode: JointTrajectoryT::MODE_PT,
+    fn msg(mode: i8, queue: i8, start: i64) -> JointTrajectoryT {
+        JointTrajectoryT {
+            mode,
+            queue,
+            start_utime: start,
             num_joints: 1,
             joint_names: vec!["a".into()],
             num_rows: 2,
@@ -302,19 +620,45 @@ mod tests {
             positions: vec![vec![0.0], vec![0.1]],
             velocities: vec![vec![0.0], vec![0.0]],
             ..Default::default()
-        };
-        assert!(trajectory_from_msg(&m).velocities.is_empty());
+        }
+    }
+
+    #[test]
+    fn every_mode_and_queue_value_is_honoured_or_refused() {
+        let pt = trajectory_from_msg(&msg(JointTrajectoryT::MODE_PT, 0, 0)).unwrap();
+        assert!(pt.velocities.is_empty());
+        assert_eq!(pt.start, Start::Now);
+        let pvt = trajectory_from_msg(&msg(JointTrajectoryT::MODE_PVT, 0, 5)).unwrap();
+        assert_eq!((pvt.velocities.len(), pvt.start), (2, Start::At(5)));
+        let app = trajectory_from_msg(&msg(1, JointTrajectoryT::QUEUE_APPEND, 0)).unwrap();
+        assert_eq!(app.start, Start::Append);
+        // Mode 7 was played as PT: now it is refused, as are unknown queue values.
+        assert!(trajectory_from_msg(&msg(7, 0, 0))
+            .unwrap_err()
+            .contains("mode 7"));
+        assert!(trajectory_from_msg(&msg(1, 9, 0))
+            .unwrap_err()
+            .contains("queue 9"));
+        assert!(trajectory_from_msg(&msg(1, 1, 5)).is_err());
+    }
+
+    #[test]
+    fn states_carry_the_fault_bit_and_the_velocity() {
         let s = state_msg(
             &[(
                 "a",
-                JointState {
+                stride_elmo::JointState {
                     position: 0.5,
+                    velocity: 0.25,
                     statusword: 0x0218,
                     updated: None,
                 },
             )],
             HeaderT::default(),
         );
-        assert_eq!((s.positions[0], s.faults[0]), (0.5, 1));
+        assert_eq!(
+            (s.positions[0], s.velocities[0], s.faults[0]),
+            (0.5, 0.25, 1)
+        );
     }
 }

@@ -25,6 +25,7 @@ pub fn min_jerk(
         header,
         start_utime: 0,
         mode: JointTrajectoryT::MODE_PVT,
+        queue: JointTrajectoryT::QUEUE_REPLACE,
         num_joints: names.len() as i32,
         joint_names: names.to_vec(),
         num_rows: rows as i32,

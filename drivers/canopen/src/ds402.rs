@@ -195,6 +195,15 @@ impl State {
         }
     }
 
+    /// True in the states where the motor carries torque (following set-points, or
+    /// decelerating in a quick stop or a fault reaction).
+    pub fn torque(self) -> bool {
+        matches!(
+            self,
+            State::OperationEnabled | State::QuickStopActive | State::FaultReactionActive
+        )
+    }
+
     /// The state bits a drive in this state reports (voltage-enabled bit 4 set when powered).
     pub fn statusword_bits(self) -> u16 {
         match self {

@@ -1,0 +1,182 @@
+//! The motion between two table rows as a drive plays it, and its exact extremes: a cubic
+//! Hermite segment (PVT rows, and PT points with the slopes the drive gives them), or a line
+//! (interpolated position). Pure arithmetic.
+
+/// A cubic `p(t) = c0 + c1 t + c2 t² + c3 t³` on `0..=h`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cubic {
+    c: [f64; 4],
+    h: f64,
+}
+
+/// The largest values a segment reaches: position range, speed, acceleration, each with the
+/// time (from the segment's start, s) where it is reached.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Extremes {
+    /// Lowest position and when.
+    pub p_min: (f64, f64),
+    /// Highest position and when.
+    pub p_max: (f64, f64),
+    /// Largest |velocity| and when.
+    pub v: (f64, f64),
+    /// Largest |acceleration| and when.
+    pub a: (f64, f64),
+}
+
+impl Cubic {
+    /// The Hermite cubic from position `p0` and velocity `v0` to `p1`, `v1` in `h` s.
+    pub fn hermite(p0: f64, v0: f64, p1: f64, v1: f64, h: f64) -> Cubic {
+        let d = p1 - p0;
+        Cubic {
+            c: [
+                p0,
+                v0,
+                (3.0 * d / h - 2.0 * v0 - v1) / h,
+                (-2.0 * d / h + v0 + v1) / (h * h),
+            ],
+            h,
+        }
+    }
+
+    /// A straight line from `p0` to `p1` in `h` s (its velocity constant, no acceleration
+    /// inside the segment).
+    pub fn line(p0: f64, p1: f64, h: f64) -> Cubic {
+        Cubic {
+            c: [p0, (p1 - p0) / h, 0.0, 0.0],
+            h,
+        }
+    }
+
+    /// The segment's duration, s.
+    pub fn duration(&self) -> f64 {
+        self.h
+    }
+
+    /// Position and velocity at `t` s from the start.
+    pub fn at(&self, t: f64) -> (f64, f64) {
+        let [c0, c1, c2, c3] = self.c;
+        (
+            c0 + t * (c1 + t * (c2 + t * c3)),
+            c1 + t * (2.0 * c2 + t * 3.0 * c3),
+        )
+    }
+
+    /// Acceleration at `t`.
+    pub fn acceleration(&self, t: f64) -> f64 {
+        2.0 * self.c[2] + 6.0 * self.c[3] * t
+    }
+
+    /// The exact extremes over `0..=h`: the velocity is quadratic and the acceleration
+    /// linear, so they peak at the ends or where their derivative vanishes; the position peaks
+    /// at the ends or where the velocity does.
+    pub fn extremes(&self) -> Extremes {
+        let [_, c1, c2, c3] = self.c;
+        let h = self.h;
+        let inside = |t: f64| t > 0.0 && t < h;
+        // Where v = 0: 3 c3 t² + 2 c2 t + c1 = 0.
+        let mut stops = vec![0.0, h];
+        let (qa, qb, qc) = (3.0 * c3, 2.0 * c2, c1);
+        if qa.abs() > 1e-300 {
+            let disc = qb * qb - 4.0 * qa * qc;
+            if disc >= 0.0 {
+                let r = disc.sqrt();
+                stops.extend([(-qb - r) / (2.0 * qa), (-qb + r) / (2.0 * qa)]);
+            }
+        } else if qb.abs() > 1e-300 {
+            stops.push(-qc / qb);
+        }
+        let (mut p_min, mut p_max) = ((f64::INFINITY, 0.0), (f64::NEG_INFINITY, 0.0));
+        for t in stops
+            .into_iter()
+            .filter(|&t| t == 0.0 || t == h || inside(t))
+        {
+            let p = self.at(t).0;
+            if p < p_min.0 {
+                p_min = (p, t);
+            }
+            if p > p_max.0 {
+                p_max = (p, t);
+            }
+        }
+        // |v| peaks at the ends or at the vertex of the parabola (a = 0).
+        let mut v = (0.0f64, 0.0);
+        let mut times = vec![0.0, h];
+        if c3.abs() > 1e-300 && inside(-c2 / (3.0 * c3)) {
+            times.push(-c2 / (3.0 * c3));
+        }
+        for t in times {
+            let s = self.at(t).1.abs();
+            if s > v.0 {
+                v = (s, t);
+            }
+        }
+        let (a0, a1) = (self.acceleration(0.0).abs(), self.acceleration(h).abs());
+        let a = if a1 > a0 { (a1, h) } else { (a0, 0.0) };
+        Extremes { p_min, p_max, v, a }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The extremes by dense sampling, to hold the exact ones against.
+    fn sampled(c: &Cubic) -> (f64, f64, f64, f64) {
+        let n = 20_000;
+        let (mut lo, mut hi, mut v, mut a) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64, 0.0f64);
+        for i in 0..=n {
+            let t = c.duration() * i as f64 / n as f64;
+            let (p, vel) = c.at(t);
+            lo = lo.min(p);
+            hi = hi.max(p);
+            v = v.max(vel.abs());
+            a = a.max(c.acceleration(t).abs());
+        }
+        (lo, hi, v, a)
+    }
+
+    #[test]
+    fn zero_velocity_rows_1_ms_apart_need_750_rad_s() {
+        // The finding: rows 0 and 0.5 rad 1 ms apart, both at rest: the cubic peaks at
+        // 1.5 x 0.5 / 0.001 = 750 rad/s halfway, and accelerates at 6 x 0.5 / 0.001² at the
+        // ends.
+        let c = Cubic::hermite(0.0, 0.0, 0.5, 0.0, 0.001);
+        let e = c.extremes();
+        assert!((e.v.0 - 750.0).abs() < 1e-9, "{e:?}");
+        assert!((e.v.1 - 0.0005).abs() < 1e-12);
+        assert!((e.a.0 - 3.0e6).abs() < 1e-3);
+        assert_eq!((e.p_min.0, e.p_max.0), (0.0, 0.5));
+    }
+
+    #[test]
+    fn overshoot_between_rows_is_found() {
+        // Leaving 0 at 2 rad/s and arriving at 0.1 at rest in 0.2 s overshoots 0.1.
+        let c = Cubic::hermite(0.0, 2.0, 0.1, 0.0, 0.2);
+        let e = c.extremes();
+        assert!(e.p_max.0 > 0.1 + 1e-3, "{e:?}");
+        let (_, hi, _, _) = sampled(&c);
+        assert!((e.p_max.0 - hi).abs() < 1e-7);
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn exact_extremes_match_dense_sampling(
+            p0 in -2.0..2.0f64, p1 in -2.0..2.0f64, v0 in -5.0..5.0f64, v1 in -5.0..5.0f64,
+            h in 0.001..0.3f64,
+        ) {
+            let c = Cubic::hermite(p0, v0, p1, v1, h);
+            let (end_p, end_v) = c.at(h);
+            proptest::prop_assert!((end_p - p1).abs() < 1e-9 && (end_v - v1).abs() < 1e-6);
+            let e = c.extremes();
+            let (lo, hi, v, a) = sampled(&c);
+            // Sampling never exceeds the exact figures, and comes close to them.
+            let tol = |x: f64| 1e-9 * (1.0 + x.abs());
+            proptest::prop_assert!(lo >= e.p_min.0 - tol(lo) && hi <= e.p_max.0 + tol(hi));
+            proptest::prop_assert!(v <= e.v.0 + tol(v) && a <= e.a.0 + tol(a));
+            proptest::prop_assert!((e.p_min.0 - lo).abs() < 1e-6 * (1.0 + lo.abs()));
+            proptest::prop_assert!((e.p_max.0 - hi).abs() < 1e-6 * (1.0 + hi.abs()));
+            proptest::prop_assert!((e.v.0 - v).abs() < 1e-4 * (1.0 + v));
+            proptest::prop_assert!((e.a.0 - a).abs() < 1e-9 * (1.0 + a));
+        }
+    }
+}

@@ -1,0 +1,217 @@
+//! A rig of fake drives on an in-memory bus and a master, for the master's tests.
+
+#![allow(dead_code)]
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use stride_canbus::{MemBus, MemNode};
+use stride_elmo::{JointConfig, Master, MasterConfig, Motion, Start, Trajectory};
+use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
+
+pub fn joint(i: u8) -> JointConfig {
+    JointConfig {
+        name: format!("j{i}"),
+        node: i,
+        counts_per_rev: 4096.0,
+        gear_ratio: 100.0,
+        min_position: -1.5,
+        max_position: 1.5,
+        max_velocity: 3.0,
+        max_acceleration: 60.0,
+        tolerance: 0.01,
+    }
+}
+
+pub struct Rig {
+    pub bus: MemBus,
+    pub stop: Arc<AtomicBool>,
+    pub drives: Vec<JoinHandle<FakeElmo>>,
+    pub levers: Vec<Levers>,
+    pub m: Master<MemNode>,
+}
+
+impl Rig {
+    /// `n` fake drives and a master in `motion` mode, brought up, with states coming.
+    pub fn new(n: u8, motion: Motion) -> Rig {
+        Rig::with(
+            n,
+            MasterConfig {
+                motion,
+                ..Default::default()
+            },
+        )
+    }
+
+    pub fn with(n: u8, cfg: MasterConfig) -> Rig {
+        let bus = MemBus::new(1_000_000);
+        let stop = Arc::new(AtomicBool::new(false));
+        let levers: Vec<Levers> = (0..n).map(|_| Levers::default()).collect();
+        let drives = levers
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                FakeElmo::new(ElmoConfig::new(i as u8 + 1), l.clone())
+                    .spawn(bus.node(), stop.clone())
+            })
+            .collect();
+        let mut m = Master::new(bus.node(), (1..=n).map(joint).collect(), cfg).unwrap();
+        m.bring_up().unwrap();
+        let mut rig = Rig {
+            bus,
+            stop,
+            drives,
+            levers,
+            m,
+        };
+        rig.run(Duration::from_millis(50));
+        rig
+    }
+
+    /// Pumps for `d`, at every wake the master asks for (at least every millisecond).
+    pub fn run(&mut self, d: Duration) {
+        let end = Instant::now() + d;
+        while Instant::now() < end {
+            self.m.pump(Instant::now()).unwrap();
+            let wake = self
+                .m
+                .next_wake()
+                .min(Instant::now() + Duration::from_millis(1))
+                .min(end);
+            if let Some(w) = wake.checked_duration_since(Instant::now()) {
+                std::thread::sleep(w);
+            }
+        }
+    }
+
+    /// Pumps until the master is idle (at most 10 s), then lets the motors settle.
+    pub fn play(&mut self) {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !self.m.idle() && Instant::now() < deadline {
+            self.run(Duration::from_millis(5));
+        }
+        assert!(self.m.idle(), "trajectory not finished");
+        self.run(Duration::from_millis(100));
+    }
+
+    /// Pumps for `d`, recording every joint's position at each state.
+    pub fn record(&mut self, d: Duration) -> Vec<(Instant, Vec<f64>)> {
+        let end = Instant::now() + d;
+        let mut out: Vec<(Instant, Vec<f64>)> = Vec::new();
+        while Instant::now() < end {
+            self.run(Duration::from_millis(1));
+            let s = self.m.states();
+            let t = s[0].1.updated.unwrap();
+            if out.last().is_none_or(|(u, _)| *u != t) {
+                out.push((t, s.iter().map(|(_, s)| s.position).collect()));
+            }
+        }
+        out
+    }
+
+    pub fn positions(&self) -> Vec<f64> {
+        self.m.states().iter().map(|(_, s)| s.position).collect()
+    }
+
+    /// Stops the fake drives and returns them.
+    pub fn finish(self) -> Vec<FakeElmo> {
+        self.stop.store(true, Ordering::Relaxed);
+        self.drives.into_iter().map(|d| d.join().unwrap()).collect()
+    }
+}
+
+/// One period of a shape over `rows` rows 10 ms apart: joint `j` moves by
+/// `amplitude · (j + 1) / joints · p(ω, t)` at velocity `amplitude · (j + 1) / joints · v(ω, t)`.
+pub fn periodic(
+    joints: usize,
+    amplitude: f64,
+    rows: usize,
+    p: fn(f64, f64) -> f64,
+    v: fn(f64, f64) -> f64,
+) -> Trajectory {
+    let dt = 0.01;
+    let w = std::f64::consts::TAU / (dt * (rows - 1) as f64);
+    let table = |f: fn(f64, f64) -> f64| -> Vec<Vec<f64>> {
+        (0..rows)
+            .map(|r| {
+                (0..joints)
+                    .map(|j| amplitude * (j + 1) as f64 / joints as f64 * f(w, r as f64 * dt))
+                    .collect()
+            })
+            .collect()
+    };
+    Trajectory {
+        joints: (1..=joints).map(|i| format!("j{i}")).collect(),
+        times: (0..rows).map(|r| r as f64 * dt).collect(),
+        positions: table(p),
+        velocities: table(v),
+        start: Start::Now,
+    }
+}
+
+/// A sine period of 0.3 rad (scaled per joint): it ends in motion.
+pub fn sine(joints: usize, rows: usize) -> Trajectory {
+    periodic(
+        joints,
+        0.3,
+        rows,
+        |w, t| (w * t).sin(),
+        |w, t| w * (w * t).cos(),
+    )
+}
+
+/// A move out and back of `amplitude` rad (a cosine bump), at rest at both ends.
+pub fn bump(joints: usize, amplitude: f64, rows: usize) -> Trajectory {
+    periodic(
+        joints,
+        amplitude,
+        rows,
+        |w, t| (1.0 - (w * t).cos()) / 2.0,
+        |w, t| w * (w * t).sin() / 2.0,
+    )
+}
+
+/// A minimum-jerk move of the named joints from `from` to `to` in `secs`, rows 10 ms apart.
+pub fn minjerk(names: &[&str], from: &[f64], to: &[f64], secs: f64) -> Trajectory {
+    let n = (secs / 0.01).round() as usize;
+    let times: Vec<f64> = (0..=n).map(|r| r as f64 * 0.01).collect();
+    let s = |t: f64| {
+        let x = t / secs;
+        10.0 * x.powi(3) - 15.0 * x.powi(4) + 6.0 * x.powi(5)
+    };
+    let ds = |t: f64| {
+        let x = t / secs;
+        (30.0 * x.powi(2) - 60.0 * x.powi(3) + 30.0 * x.powi(4)) / secs
+    };
+    Trajectory {
+        joints: names.iter().map(|s| s.to_string()).collect(),
+        positions: times
+            .iter()
+            .map(|&t| {
+                from.iter()
+                    .zip(to)
+                    .map(|(a, b)| a + (b - a) * s(t))
+                    .collect()
+            })
+            .collect(),
+        velocities: times
+            .iter()
+            .map(|&t| from.iter().zip(to).map(|(a, b)| (b - a) * ds(t)).collect())
+            .collect(),
+        times,
+        start: Start::Now,
+    }
+}
+
+/// One joint's trajectory from rows of (time, position, velocity).
+pub fn rows(name: &str, rows: &[(f64, f64, f64)]) -> Trajectory {
+    Trajectory {
+        joints: vec![name.into()],
+        times: rows.iter().map(|r| r.0).collect(),
+        positions: rows.iter().map(|r| vec![r.1]).collect(),
+        velocities: rows.iter().map(|r| vec![r.2]).collect(),
+        start: Start::Now,
+    }
+}

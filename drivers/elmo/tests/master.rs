@@ -1,0 +1,642 @@
+//! The Elmo master against fake drives on an in-memory bus: what it lets through, how it
+//! plays, streams, stops and shuts down.
+
+mod common;
+
+use std::time::{Duration, Instant};
+
+use common::{bump, joint, minjerk, rows, sine, Rig};
+use stride_canbus::{CanBus, MemBus};
+use stride_canopen::ds402::State as DriveState;
+use stride_canopen::emcy::{ElmoEmcy, Emcy};
+use stride_elmo::{Event, Master, MasterConfig, MasterError, Motion, Start};
+
+fn emergencies(events: &[Event], code: u16) -> usize {
+    events
+        .iter()
+        .filter(|e| matches!(e, Event::Emergency { emcy, .. } if emcy.code == code))
+        .count()
+}
+
+#[test]
+fn six_drives_walk_a_trajectory_longer_than_their_tables() {
+    let mut r = Rig::new(6, Motion::Pvt);
+    // 150 rows (1.5 s), more than the 64-row tables hold: refilled as the drives play.
+    let t = bump(6, 0.3, 150);
+    r.m.load(&t, Instant::now()).unwrap();
+    r.play();
+    for (i, (name, s)) in r.m.states().into_iter().enumerate() {
+        let want = t.positions.last().unwrap()[i];
+        assert!(
+            (s.position - want).abs() < 1e-3,
+            "{name}: {} vs {want}",
+            s.position
+        );
+    }
+    let events = r.m.take_events();
+    // No following error, and the normal end of a motion is no emergency.
+    assert!(events.is_empty(), "{events:?}");
+    let shut = r.m.shutdown();
+    assert!(shut.failed.is_empty() && shut.standstill, "{shut:?}");
+    r.finish();
+}
+
+#[test]
+fn row_limits_refuse_the_whole_trajectory() {
+    let r = Rig::new(2, Motion::Pvt);
+    let mut m = r.m;
+    let mut t = sine(2, 150);
+    t.positions[5][1] = 2.0;
+    let e = m.load(&t, Instant::now()).unwrap_err();
+    assert!(matches!(e, MasterError::Limit { row: 5, .. }), "{e}");
+    let mut t = sine(2, 150);
+    t.velocities[3][0] = 10.0;
+    assert!(matches!(
+        m.load(&t, Instant::now()),
+        Err(MasterError::Limit { row: 3, .. })
+    ));
+    let mut t = sine(2, 150);
+    t.joints[1] = "nope".into();
+    assert!(matches!(
+        m.load(&t, Instant::now()),
+        Err(MasterError::BadTrajectory(_))
+    ));
+    assert_eq!(m.status().counters.refused, 3);
+}
+
+#[test]
+fn zero_velocity_rows_1_ms_apart_are_refused() {
+    // The finding: rows 0 and 0.5 rad 1 ms apart with zero velocities; the cubic between them
+    // needs 750 rad/s against a 3 rad/s limit.
+    let mut r = Rig::new(1, Motion::Pvt);
+    let t = rows("j1", &[(0.0, 0.0, 0.0), (0.001, 0.5, 0.0)]);
+    let e = r.m.load(&t, Instant::now()).unwrap_err();
+    let MasterError::Limit { row, joint, what } = &e else {
+        panic!("{e}")
+    };
+    assert_eq!((*row, joint.as_str()), (1, "j1"));
+    assert!(what.starts_with("velocity 750.000 rad/s"), "{what}");
+    r.run(Duration::from_millis(100));
+    assert!(r.positions()[0].abs() < 1e-4, "it moved");
+    r.finish();
+}
+
+#[test]
+fn a_two_row_pt_table_is_refused() {
+    // PT rows (no velocities): 0 to 0.45 rad in 1 ms, played as a cubic from rest to rest.
+    let mut r = Rig::new(1, Motion::Pvt);
+    let mut t = rows("j1", &[(0.0, 0.0, 0.0), (0.001, 0.45, 0.0)]);
+    t.velocities.clear();
+    let e = r.m.load(&t, Instant::now()).unwrap_err();
+    assert!(e.to_string().contains("velocity 675.000 rad/s"), "{e}");
+    // And in the drives' own PT mode, where points come every period.
+    let mut pt = Rig::new(1, Motion::Pt { period_ms: 10 });
+    let e = pt.m.load(&t, Instant::now()).unwrap_err();
+    assert!(e.to_string().contains("velocity"), "{e}");
+    r.finish();
+    pt.finish();
+}
+
+#[test]
+fn a_first_row_away_from_where_the_joint_stands_is_refused() {
+    let mut r = Rig::new(1, Motion::Pvt);
+    let t = rows("j1", &[(0.0, 0.9, 0.0), (0.5, 0.9, 0.0)]);
+    let e = r.m.load(&t, Instant::now()).unwrap_err();
+    assert!(
+        matches!(&e, MasterError::Limit { row: 0, what, .. } if what.contains("0.9000 rad from where the joint stands")),
+        "{e}"
+    );
+    // The same move, joined from where the joint stands over the first 0.5 s, is played.
+    let t = rows("j1", &[(0.5, 0.3, 0.0)]);
+    r.m.load(&t, Instant::now()).unwrap();
+    r.play();
+    assert!((r.positions()[0] - 0.3).abs() < 1e-3, "{:?}", r.positions());
+    r.finish();
+}
+
+#[test]
+fn a_joint_named_twice_is_refused() {
+    let mut r = Rig::new(1, Motion::Pvt);
+    let mut t = rows("j1", &[(0.0, 0.0, 0.0), (0.1, 0.0, 0.0)]);
+    t.joints = vec!["j1".into(), "j1".into()];
+    t.positions = vec![vec![0.0, 2.2], vec![0.0, 2.2]];
+    t.velocities = vec![vec![0.0, 0.0], vec![0.0, 0.0]];
+    let e = r.m.load(&t, Instant::now()).unwrap_err();
+    assert!(e.to_string().contains("j1 named twice"), "{e}");
+    r.finish();
+}
+
+#[test]
+fn the_acceleration_limit_is_checked_between_rows() {
+    let mut r = Rig::new(1, Motion::Pvt);
+    // 0.3 rad in 0.3 s, minimum jerk: a peak of 5.77 x 0.3 / 0.09 = 19 rad/s², under 60
+    // even as the cubics between its rows play it.
+    r.m.load(&minjerk(&["j1"], &[0.0], &[0.3], 0.3), Instant::now())
+        .unwrap();
+    r.play();
+    // 0.1 rad in 0.09 s: the profile peaks at 71 rad/s² (at 2.1 rad/s), over the limit;
+    // the cubics between its 10 ms rows peak higher still.
+    let t = minjerk(&["j1"], &[0.3], &[0.4], 0.09);
+    let e = r.m.load(&t, Instant::now()).unwrap_err();
+    assert!(
+        matches!(&e, MasterError::Limit { what, .. } if what.starts_with("acceleration") && what.ends_with("beyond 60")),
+        "{e}"
+    );
+    r.finish();
+}
+
+#[test]
+fn start_utime_is_honoured() {
+    let mut r = Rig::new(2, Motion::Pvt);
+    let wall = |d: Duration| {
+        (std::time::SystemTime::now() + d)
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_micros() as i64
+    };
+    let mut t = minjerk(&["j1", "j2"], &[0.0, 0.0], &[0.2, -0.2], 0.3);
+    t.start = Start::At(wall(Duration::from_millis(600)));
+    let a = r.m.load(&t, Instant::now()).unwrap();
+    let until = a.start - Duration::from_millis(20);
+    let before = r.record(until.saturating_duration_since(Instant::now()));
+    assert!(
+        before.iter().all(|(_, p)| p.iter().all(|x| x.abs() < 1e-4)),
+        "moved before its start"
+    );
+    let after = r.record(Duration::from_millis(500));
+    // It started at its time (within a SYNC period and the motor's lag).
+    let moved = after
+        .iter()
+        .find(|(_, p)| p[0].abs() > 1e-3)
+        .expect("it moved");
+    let late = moved.0.saturating_duration_since(a.start);
+    assert!(late < Duration::from_millis(40), "{late:?}");
+    assert!((r.positions()[0] - 0.2).abs() < 1e-3);
+    // A start that has passed, or beyond the queue's bound, is refused.
+    t.start = Start::At(wall(Duration::ZERO) - 2_000_000);
+    assert!(r
+        .m
+        .load(&t, Instant::now())
+        .unwrap_err()
+        .to_string()
+        .contains("in the past"));
+    t.start = Start::At(wall(Duration::from_secs(30)));
+    assert!(r
+        .m
+        .load(&t, Instant::now())
+        .unwrap_err()
+        .to_string()
+        .contains("queue holds"));
+    r.finish();
+}
+
+#[test]
+fn a_new_trajectory_replaces_what_is_queued_from_its_start() {
+    // The finding: 2000 tiny trajectories holding the joint, then a real move: it has to start
+    // at once, not after 57 s of queued holds.
+    let mut r = Rig::new(1, Motion::Pvt);
+    for _ in 0..2000 {
+        let hold = rows("j1", &[(0.0, 0.0, 0.0), (0.01, 0.0, 0.0), (0.02, 0.0, 0.0)]);
+        r.m.load(&hold, Instant::now()).unwrap();
+        r.m.pump(Instant::now()).unwrap();
+    }
+    let t0 = Instant::now();
+    let a =
+        r.m.load(&minjerk(&["j1"], &[0.0], &[0.3], 0.3), Instant::now())
+            .unwrap();
+    assert!(
+        a.start < t0 + Duration::from_millis(150),
+        "{:?}",
+        a.start - t0
+    );
+    r.play();
+    assert!(t0.elapsed() < Duration::from_secs(1), "{:?}", t0.elapsed());
+    assert!((r.positions()[0] - 0.3).abs() < 1e-3);
+    let c = r.m.status().counters;
+    assert_eq!(c.accepted, 2001);
+    assert!(c.replaced_rows > 1000, "{c:?}");
+    r.finish();
+}
+
+#[test]
+fn a_chunk_plays_to_its_end_then_stops_within_the_limits() {
+    // The finding: a 1.0 s chunk ending at 0.4 rad/s was quick-stopped 0.51 s after it
+    // arrived. It must play to its end, then decelerate at no more than the limit.
+    let mut r = Rig::new(1, Motion::Pvt);
+    let times: Vec<f64> = (0..=100).map(|k| k as f64 * 0.01).collect();
+    let t = stride_elmo::Trajectory {
+        joints: vec!["j1".into()],
+        positions: times.iter().map(|&x| vec![0.2 * x * x]).collect(),
+        velocities: times.iter().map(|&x| vec![0.4 * x]).collect(),
+        times,
+        start: Start::Now,
+    };
+    r.m.load(&t, Instant::now()).unwrap();
+    let trace = r.record(Duration::from_millis(1500));
+    // It reached the chunk's end (0.2 rad), and the stop after it is v²/2a = 0.16/120 more.
+    let end = trace.last().unwrap().1[0];
+    assert!((end - (0.2 + 0.16 / 120.0)).abs() < 2e-3, "ended at {end}");
+    // No step in it: the speed between states never jumps by more than the acceleration
+    // limit allows over a SYNC period (with a margin for the motor's lag).
+    let v: Vec<f64> = trace
+        .windows(2)
+        .map(|w| (w[1].1[0] - w[0].1[0]) / (w[1].0 - w[0].0).as_secs_f64())
+        .collect();
+    let max_dv = v
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .fold(0.0, f64::max);
+    assert!(max_dv < 60.0 * 0.02, "a speed step of {max_dv} rad/s");
+    let ev = r.m.take_events();
+    assert!(
+        ev.iter()
+            .any(|e| matches!(e, Event::StreamStopped { joints } if joints == &["j1"])),
+        "{ev:?}"
+    );
+    assert!(!ev.iter().any(Event::is_fault), "{ev:?}");
+    assert_eq!(r.m.status().counters.stream_stops, 1);
+    r.finish();
+}
+
+#[test]
+fn streamed_chunks_join_without_a_stop() {
+    // A stream of 0.2 s chunks, each appended to the last and sent while the one before
+    // plays: one continuous motion, and no stop between.
+    let mut r = Rig::new(1, Motion::Pvt);
+    let v = 0.5;
+    for k in 0..6 {
+        let t0 = k as f64 * 0.2;
+        let mut c = rows(
+            "j1",
+            &(0..=20)
+                .map(|i| {
+                    let tt = t0 + i as f64 * 0.01;
+                    // Ramp up in the first chunk, then cruise.
+                    let (p, vel) = if k == 0 {
+                        (v * tt * tt / 0.4, v * tt / 0.2)
+                    } else {
+                        (v * 0.1 + v * (tt - 0.2), v)
+                    };
+                    (i as f64 * 0.01, p, vel)
+                })
+                .collect::<Vec<_>>(),
+        );
+        c.start = if k == 0 { Start::Now } else { Start::Append };
+        r.m.load(&c, Instant::now()).unwrap();
+        r.run(Duration::from_millis(100));
+    }
+    let trace = r.record(Duration::from_millis(900));
+    let ev = r.m.take_events();
+    let stops: Vec<_> = ev
+        .iter()
+        .filter(|e| matches!(e, Event::StreamStopped { .. }))
+        .collect();
+    assert_eq!(stops.len(), 1, "only the end of the stream stops: {ev:?}");
+    // Cruising at 0.5 rad/s through the joins (speeds over 50 ms, the states' arrival
+    // jitter averaged out).
+    let mid: Vec<f64> = trace
+        .windows(6)
+        .take(30)
+        .map(|w| (w[5].1[0] - w[0].1[0]) / (w[5].0 - w[0].0).as_secs_f64())
+        .collect();
+    assert!(mid.iter().all(|s| (s - v).abs() < 0.03), "{mid:?}");
+    r.finish();
+}
+
+#[test]
+fn after_a_quick_stop_the_next_valid_trajectory_moves() {
+    let mut r = Rig::new(2, Motion::Pvt);
+    r.m.load(
+        &minjerk(&["j1", "j2"], &[0.0, 0.0], &[0.5, 0.5], 1.0),
+        Instant::now(),
+    )
+    .unwrap();
+    r.run(Duration::from_millis(300));
+    assert!(r.m.quick_stop("test").is_empty());
+    r.run(Duration::from_millis(300));
+    assert_eq!(r.m.status().stopped.as_deref(), Some("test"));
+    let here = r.positions();
+    for (_, s) in r.m.states() {
+        assert_eq!(
+            DriveState::from_statusword(s.statusword),
+            DriveState::QuickStopActive
+        );
+    }
+    // The next valid trajectory, from where the joints stand, enables them again.
+    let a =
+        r.m.load(
+            &minjerk(&["j1", "j2"], &here, &[0.1, 0.1], 0.5),
+            Instant::now(),
+        )
+        .unwrap();
+    assert!(a.rearmed);
+    r.play();
+    assert!(
+        r.positions().iter().all(|p| (p - 0.1).abs() < 1e-3),
+        "{:?}",
+        r.positions()
+    );
+    assert_eq!(r.m.status().stopped, None);
+    assert_eq!(r.m.status().counters.rearms, 1);
+    r.finish();
+}
+
+#[test]
+fn a_velocity_past_the_24_bit_field_is_refused_at_start() {
+    // The finding: a 17-bit encoder at gear 120 and 6 rad/s; a 4.7 rad/s move panicked the
+    // bridge. The configuration itself cannot be represented in PVT.
+    let bus = MemBus::new(1_000_000);
+    let j = stride_elmo::JointConfig {
+        counts_per_rev: 131_072.0,
+        gear_ratio: 120.0,
+        max_velocity: 6.0,
+        ..joint(1)
+    };
+    let e = Master::new(bus.node(), vec![j], MasterConfig::default()).unwrap_err();
+    assert!(e.to_string().contains("24-bit PVT velocity"), "{e}");
+}
+
+#[test]
+fn shutdown_decelerates_then_disables() {
+    let mut r = Rig::new(3, Motion::Pvt);
+    r.m.load(
+        &minjerk(&["j1", "j2", "j3"], &[0.0; 3], &[1.0; 3], 1.0),
+        Instant::now(),
+    )
+    .unwrap();
+    r.run(Duration::from_millis(450));
+    let at = r.positions()[0];
+    let v = r.m.states()[0].1.velocity;
+    assert!(v > 1.0, "moving at {v}");
+    let shut = r.m.shutdown();
+    assert!(shut.failed.is_empty(), "{:?}", shut.failed);
+    assert!(shut.standstill, "{shut:?}");
+    // It decelerated (a stop of v²/2a, not a cut) before the torque went off.
+    let moved = r.positions()[0] - at;
+    assert!(moved > 0.5 * v * v / (2.0 * 60.0), "stopped in {moved} rad");
+    assert!(
+        shut.stopping >= Duration::from_secs_f64(v / 60.0),
+        "{shut:?}"
+    );
+    for d in r.finish() {
+        assert_eq!(d.probe().state, DriveState::SwitchOnDisabled);
+    }
+}
+
+#[test]
+fn quick_stop_and_disable_go_on_past_a_silent_drive() {
+    let mut r = Rig::with(
+        3,
+        MasterConfig {
+            sdo_timeout: Duration::from_millis(50),
+            ..Default::default()
+        },
+    );
+    r.levers[1]
+        .silent
+        .store(true, std::sync::atomic::Ordering::Relaxed);
+    let failed = r.m.quick_stop("test");
+    assert_eq!(failed.len(), 1, "{failed:?}");
+    assert!(failed[0].to_string().contains("j2 (node 2)"));
+    let failed = r.m.disable();
+    assert_eq!(failed.len(), 1, "{failed:?}");
+    let drives = r.finish();
+    for i in [0, 2] {
+        assert_eq!(drives[i].probe().state, DriveState::SwitchOnDisabled);
+    }
+}
+
+#[test]
+fn all_axes_of_a_trajectory_start_together() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::{Arc, Mutex};
+    let mut r = Rig::new(6, Motion::Pvt);
+    // A sniffer on the bus notes when each start (BG on RPDO2) is on the wire.
+    let mut sniff = r.bus.node();
+    let seen: Arc<Mutex<Vec<(u32, Instant)>>> = Arc::default();
+    let done = Arc::new(AtomicBool::new(false));
+    let (s, d) = (seen.clone(), done.clone());
+    let h = std::thread::spawn(move || {
+        while !d.load(Ordering::Relaxed) {
+            if let Ok(f) = sniff.recv(Instant::now() + Duration::from_millis(5)) {
+                if (0x301..=0x306).contains(&f.raw_id()) && f.data()[..2] == *b"BG" {
+                    s.lock().unwrap().push((f.raw_id(), Instant::now()));
+                }
+            }
+        }
+    });
+    r.m.load(&bump(6, 0.2, 60), Instant::now()).unwrap();
+    r.play();
+    done.store(true, Ordering::Relaxed);
+    h.join().unwrap();
+    let starts = seen.lock().unwrap().clone();
+    assert_eq!(starts.len(), 6, "{starts:?}");
+    // Back to back: six 8-byte frames take about 0.8 ms at 1 Mbit/s.
+    let first = starts.iter().map(|s| s.1).min().unwrap();
+    let last = starts.iter().map(|s| s.1).max().unwrap();
+    assert!(
+        last - first < Duration::from_millis(2),
+        "{:?}",
+        last - first
+    );
+    r.finish();
+}
+
+#[test]
+fn drives_stop_on_their_own_when_the_master_dies() {
+    let mut r = Rig::new(3, Motion::Pvt);
+    r.m.load(
+        &minjerk(&["j1", "j2", "j3"], &[0.0; 3], &[1.0; 3], 2.0),
+        Instant::now(),
+    )
+    .unwrap();
+    r.run(Duration::from_millis(600));
+    // The master goes without a word (a SIGKILL): no quick stop, no disable.
+    let Rig {
+        bus,
+        stop,
+        drives,
+        m,
+        ..
+    } = r;
+    std::mem::forget(m);
+    let mut watch = bus.node();
+    let t0 = Instant::now();
+    let deadline = t0 + Duration::from_secs(1);
+    let mut stops = Vec::new();
+    while Instant::now() < deadline && stops.len() < 3 {
+        if let Ok(f) = watch.recv(deadline) {
+            if let Ok(e) = Emcy::decode(&f) {
+                if e.code == Emcy::HEARTBEAT_ERROR {
+                    stops.push((e.node.get(), t0.elapsed()));
+                }
+            }
+        }
+    }
+    assert_eq!(stops.len(), 3, "{stops:?}");
+    // Within the consumer time (100 ms) of the last heartbeat, with a margin for the poll.
+    assert!(
+        stops.iter().all(|s| s.1 < Duration::from_millis(150)),
+        "{stops:?}"
+    );
+    std::thread::sleep(Duration::from_millis(300));
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    for d in drives {
+        let p = d.join().unwrap().probe();
+        assert_eq!(p.state, DriveState::QuickStopActive);
+        assert!(p.velocity.abs() < 1.0, "{p:?}");
+    }
+}
+
+#[test]
+fn interpolated_position_mode_walks_a_trajectory() {
+    let mut r = Rig::new(3, Motion::InterpolatedPosition { period_ms: 10 });
+    let t = bump(3, 0.3, 150);
+    r.m.load(&t, Instant::now()).unwrap();
+    r.play();
+    for (i, (_, s)) in r.m.states().into_iter().enumerate() {
+        assert!(s.position.abs() < 1e-3, "joint {i}: {}", s.position);
+    }
+    assert!(!r.m.take_events().iter().any(Event::is_fault));
+    r.finish();
+}
+
+#[test]
+fn pt_mode_walks_a_move_resampled_at_its_period() {
+    let mut r = Rig::new(6, Motion::Pt { period_ms: 8 });
+    // 3 s out and back at 10 ms rows, played as 8 ms PT points (376 of them, more than
+    // the 256-point rings hold): resampled, refilled, ended at rest.
+    let t = bump(6, 0.4, 301);
+    r.m.load(&t, Instant::now()).unwrap();
+    let mut peak = [0f64; 6];
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !r.m.idle() && Instant::now() < deadline {
+        r.run(Duration::from_millis(5));
+        for (i, p) in r.positions().into_iter().enumerate() {
+            peak[i] = peak[i].max(p);
+        }
+    }
+    r.play();
+    for (i, (name, s)) in r.m.states().into_iter().enumerate() {
+        let top = 0.4 * (i + 1) as f64 / 6.0;
+        assert!(s.position.abs() < 1e-3, "{name} ends at {}", s.position);
+        assert!(
+            (peak[i] - top).abs() < 0.02 * top,
+            "{name} peaked at {}",
+            peak[i]
+        );
+    }
+    let ev = r.m.take_events();
+    assert!(!ev.iter().any(Event::is_fault), "{ev:?}");
+    r.m.shutdown();
+    r.finish();
+}
+
+#[test]
+fn a_pt_period_off_the_drive_sample_grid_is_refused_at_bring_up() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
+    let bus = MemBus::new(1_000_000);
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut drive = ElmoConfig::new(1);
+    drive.ts_us = 75; // position loop every 300 µs: 10 ms is not a whole number of them
+    let h = FakeElmo::new(drive, Levers::default()).spawn(bus.node(), stop.clone());
+    let cfg = MasterConfig {
+        motion: Motion::Pt { period_ms: 10 },
+        ..Default::default()
+    };
+    let mut m = Master::new(bus.node(), vec![joint(1)], cfg).unwrap();
+    let e = m.bring_up().unwrap_err();
+    assert!(
+        matches!(&e, MasterError::Setup { node: 1, what, .. } if what.contains("300 µs")),
+        "{e}"
+    );
+    stop.store(true, Ordering::Relaxed);
+    h.join().unwrap();
+}
+
+#[test]
+fn a_missing_drive_is_a_clear_error() {
+    let bus = MemBus::new(1_000_000);
+    let cfg = MasterConfig {
+        sdo_timeout: Duration::from_millis(50),
+        ..Default::default()
+    };
+    let mut m = Master::new(bus.node(), vec![joint(9)], cfg).unwrap();
+    let e = m.bring_up().unwrap_err();
+    assert!(matches!(e, MasterError::NoAnswer { node: 9, .. }), "{e}");
+    assert!(e.to_string().contains("j9 (node 9)"));
+}
+
+#[test]
+fn faults_become_events_and_recovery_brings_the_drives_back() {
+    use std::sync::atomic::Ordering;
+    let mut r = Rig::new(2, Motion::Pvt);
+    r.run(Duration::from_millis(300));
+    assert!(r.m.take_events().is_empty());
+    // A drive in fault: its emergency is reported, its statusword shows it.
+    r.levers[0].fault.store(true, Ordering::Relaxed);
+    r.run(Duration::from_millis(100));
+    let ev = r.m.take_events();
+    assert!(
+        ev.iter().any(|e| matches!(e, Event::Emergency { joint, text, .. } if joint == "j1" && text == "current")),
+        "{ev:?}"
+    );
+    let s = r.m.states()[0].1;
+    assert_eq!(DriveState::from_statusword(s.statusword), DriveState::Fault);
+    // A drive that stops answering: its heartbeat is declared lost.
+    r.levers[1].silent.store(true, Ordering::Relaxed);
+    r.run(Duration::from_millis(500));
+    let ev = r.m.take_events();
+    assert!(
+        ev.iter()
+            .any(|e| matches!(e, Event::HeartbeatLost { joint } if joint == "j2")),
+        "{ev:?}"
+    );
+    let e = r.m.read(1, 0x1000, 0).unwrap_err();
+    assert!(matches!(e, MasterError::NoAnswer { node: 2, .. }), "{e}");
+    // Bus-off: every call fails with it, nothing panics.
+    r.bus.set_bus_off(true);
+    assert!(matches!(
+        r.m.pump(Instant::now()),
+        Err(MasterError::Bus(stride_canbus::BusError::BusOff))
+    ));
+    assert!(r.m.recover().is_err());
+    // The bus comes back (and the silent drive with it): recovery brings both drives up
+    // again, the faulted one through a fault reset, and they move.
+    r.bus.set_bus_off(false);
+    r.levers[1].silent.store(false, Ordering::Relaxed);
+    r.m.recover().unwrap();
+    r.run(Duration::from_millis(50));
+    r.m.load(&bump(2, 0.2, 60), Instant::now()).unwrap();
+    r.play();
+    for (name, s) in r.m.states() {
+        assert_eq!(
+            DriveState::from_statusword(s.statusword),
+            DriveState::OperationEnabled,
+            "{name}"
+        );
+        assert!(s.position.abs() < 1e-3, "{name}: {}", s.position);
+    }
+    // A drive that resets (here by NMT, as a power cycle would) is reported once.
+    r.m.take_events();
+    r.bus
+        .node()
+        .send(
+            &stride_canopen::nmt::encode(stride_canopen::nmt::Command::ResetNode, 2),
+            Instant::now(),
+        )
+        .unwrap();
+    r.run(Duration::from_millis(100));
+    let rebooted: Vec<Event> =
+        r.m.take_events()
+            .into_iter()
+            .filter(|e| matches!(e, Event::Rebooted { .. }))
+            .collect();
+    assert_eq!(rebooted, [Event::Rebooted { joint: "j2".into() }]);
+    r.m.recover().unwrap();
+    let _ = ElmoEmcy::QueueLow { write: 0, read: 0 };
+    emergencies(&[], 0);
+    r.finish();
+}
