@@ -93,7 +93,7 @@ impl<P: serialport::SerialPort> SlcanBus<P> {
         loop {
             if let Some(m) = self.replies.pop_front() {
                 return match m {
-                    Message::Ok | Message::Transmitted => Ok(true),
+                    Message::Ok | Message::Transmitted { .. } => Ok(true),
                     Message::Error => {
                         self.stats.refused += 1;
                         Ok(false)

@@ -171,6 +171,9 @@ pub enum Split {
         bytes: usize,
         /// Why: a bad checksum, an impossible length, or bytes before a header.
         error: CodecError,
+        /// The id of a whole packet whose checksum failed (a servo of that id answers it
+        /// with a checksum or CRC error).
+        id: Option<u8>,
     },
 }
 
@@ -184,6 +187,8 @@ pub trait Framing {
     fn packet_len(head: &[u8]) -> Option<usize>;
     /// Checks a whole packet (header, length, checksum).
     fn check(packet: &[u8]) -> Result<(), CodecError>;
+    /// The id of a packet whose header is at its start.
+    fn id(packet: &[u8]) -> u8;
 }
 
 /// Finds packets in a byte stream: bytes before a header, and packets whose checksum fails,
@@ -259,7 +264,12 @@ impl<F: Framing> Splitter<F> {
             }
             Err(e) => {
                 self.stats.checksum_errors += 1;
-                Some(self.skip(1, e))
+                let id = F::id(&self.buf);
+                let mut skipped = self.skip(1, e);
+                if let Split::Skipped { id: at, .. } = &mut skipped {
+                    *at = Some(id);
+                }
+                Some(skipped)
             }
         }
     }
@@ -278,7 +288,11 @@ impl<F: Framing> Splitter<F> {
     fn skip(&mut self, n: usize, error: CodecError) -> Split {
         self.buf.drain(..n);
         self.stats.skipped_bytes += n as u64;
-        Split::Skipped { bytes: n, error }
+        Split::Skipped {
+            bytes: n,
+            error,
+            id: None,
+        }
     }
 }
 

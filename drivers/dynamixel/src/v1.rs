@@ -146,7 +146,7 @@ pub fn encode_instruction(id: u8, ins: &Instruction) -> Result<Vec<u8>, CodecErr
 }
 
 /// Splits one whole, checked packet into (id, code, params).
-fn unframe(p: &[u8]) -> Result<(u8, u8, &[u8]), CodecError> {
+pub fn unframe(p: &[u8]) -> Result<(u8, u8, &[u8]), CodecError> {
     if p.len() < 6 {
         return Err(CodecError::Truncated {
             have: p.len(),
@@ -268,6 +268,9 @@ impl crate::Framing for Framing1 {
     }
     fn check(packet: &[u8]) -> Result<(), CodecError> {
         unframe(packet).map(|_| ())
+    }
+    fn id(packet: &[u8]) -> u8 {
+        packet[2]
     }
 }
 

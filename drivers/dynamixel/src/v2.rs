@@ -486,6 +486,9 @@ impl crate::Framing for Framing2 {
     fn check(packet: &[u8]) -> Result<(), CodecError> {
         checked(packet).map(|_| ())
     }
+    fn id(packet: &[u8]) -> u8 {
+        packet[4]
+    }
 }
 
 /// Finds Protocol 2.0 packets in a byte stream (see [`crate::Splitter`]).

@@ -2,9 +2,13 @@
 //! model's control table (EEPROM and RAM items, defaults, ranges, read-only items), answers
 //! after its return delay time as its status return level says, moves towards its goal when
 //! its torque is on, and reports the errors a real one does: input voltage, angle limit,
-//! overheating (with the shutdown that follows), overload, range, instruction. Levers
-//! ([`ChainLevers`]) make a servo overheat, overload, sag in voltage, answer late or fall
-//! silent, as on a bench. Protocol 1.0 or 2.0, the whole chain alike.
+//! overheating (with the shutdown that follows), overload, range, instruction, checksum (1.0)
+//! and CRC and data length (2.0). A reboot resets its RAM and keeps its EEPROM; a factory
+//! reset keeps what its option says (2.0: 0xFF nothing, 0x01 the id, 0x02 the id and the baud
+//! rate; 1.0 nothing), and a broadcast reset of everything is ignored, as X firmware does; the
+//! baud-rate item says the line's rate. Levers ([`ChainLevers`]) make a servo overheat,
+//! overload, sag in voltage, answer late or fall silent, as on a bench. Protocol 1.0 or 2.0,
+//! the whole chain alike.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -96,6 +100,55 @@ impl Servo {
     /// The servo's id.
     pub fn id(&self) -> u8 {
         self.id
+    }
+
+    /// Sets the baud-rate item to the model's value for `baud` (as the servo on a line at
+    /// that rate reads it).
+    pub fn at_baud(mut self, baud: u32) -> Servo {
+        if let Some(v) = self.model.baud_value(baud) {
+            self.set("baud_rate", v as i64);
+        }
+        self
+    }
+
+    /// A reboot: the RAM back to its power-on values (torque off, the goal where the servo
+    /// is), the EEPROM kept.
+    fn reboot(&mut self) {
+        let fresh = Servo::new(self.id, self.model);
+        for item in self.model.items.values() {
+            let sensor = item.access == Access::Read;
+            if item.area == Area::Ram && !sensor {
+                let (a, n) = (item.address as usize, item.size as usize);
+                self.table[a..a + n].copy_from_slice(&fresh.table[a..a + n]);
+            }
+        }
+        self.set("goal_position", self.position.round() as i64);
+        self.set("registered", 0);
+        self.registered = None;
+    }
+
+    /// A factory reset keeping what `option` says (2.0: 0x01 the id, 0x02 the id and the
+    /// baud rate; anything else, and every 1.0 reset, nothing).
+    fn factory_reset(&mut self, option: u8) {
+        let (id, baud) = (self.get("id"), self.get("baud_rate"));
+        let position = self.position;
+        let mut fresh = Servo::new(
+            self.model.item("id").map_or(1, |i| i.default as u8),
+            self.model,
+        );
+        if self.protocol() == Protocol::V2 {
+            if option == 0x01 || option == 0x02 {
+                fresh.set("id", id);
+            }
+            if option == 0x02 {
+                fresh.set("baud_rate", baud);
+            }
+        }
+        fresh.id = fresh.get("id") as u8;
+        fresh.position = position;
+        fresh.set("present_position", position.round() as i64);
+        fresh.set("goal_position", position.round() as i64);
+        *self = fresh;
     }
 
     /// True while its torque is on.
@@ -261,6 +314,10 @@ impl Servo {
                 self.transient |= ErrorBits::RANGE;
                 return Err(7);
             }
+            // 2.0 writes whole items: less than one is a data length error.
+            if self.protocol() == Protocol::V2 && (ia < a || ia + isz > a + n) {
+                return Err(5);
+            }
             if item.area == Area::Eeprom && torque_on && self.protocol() == Protocol::V2 {
                 return Err(7);
             }
@@ -340,7 +397,7 @@ impl FakeChain {
                     }
                 };
                 self.advance(Instant::now());
-                let packets: Vec<Vec<u8>> = match self.protocol {
+                let packets: Vec<Result<Vec<u8>, u8>> = match self.protocol {
                     Protocol::V1 => {
                         s1.push(&buf[..n]);
                         std::iter::from_fn(|| s1.next_item()).collect::<Vec<_>>()
@@ -352,14 +409,19 @@ impl FakeChain {
                 }
                 .into_iter()
                 .filter_map(|s| match s {
-                    Split::Packet(p) => Some(p),
+                    Split::Packet(p) => Some(Ok(p)),
+                    Split::Skipped { id: Some(id), .. } => Some(Err(id)),
                     Split::Skipped { .. } => None,
                 })
                 .collect();
                 for p in packets {
+                    let answers = match p {
+                        Ok(p) => self.handle(&p),
+                        Err(id) => self.bad_checksum(id).into_iter().collect(),
+                    };
                     // Answers to one instruction follow each other, each after its delay.
                     let mut t = Instant::now();
-                    for (delay, bytes) in self.handle(&p) {
+                    for (delay, bytes) in answers {
                         t += delay;
                         let at = due.partition_point(|(d, _)| *d <= t);
                         due.insert(at, (t, bytes));
@@ -374,9 +436,60 @@ impl FakeChain {
         })
     }
 
+    /// The servos' baud-rate items set to the line's `baud`.
+    pub fn at_baud(mut self, baud: u32) -> FakeChain {
+        self.servos = self.servos.into_iter().map(|s| s.at_baud(baud)).collect();
+        self
+    }
+
     /// The servos, as they are now.
     pub fn servos(&self) -> &[Servo] {
         &self.servos
+    }
+
+    /// A servo's answer to a packet with a bad checksum (1.0) or CRC (2.0) addressed to it.
+    fn bad_checksum(&mut self, id: u8) -> Option<(Duration, Vec<u8>)> {
+        if id == BROADCAST {
+            return None;
+        }
+        let delay = self.delay(id);
+        let fault = self.levers.get(id);
+        let s = self.servo(id)?;
+        s.transient |= ErrorBits::CHECKSUM;
+        let status = Status {
+            id,
+            error: s.error_byte(&fault, 3),
+            params: Vec::new(),
+        };
+        Some((delay, self.encode(&status)))
+    }
+
+    /// A servo's answer to an instruction it does not know, or whose parameters do not fit
+    /// it (2.0: instruction error 2, data length error 5; 1.0: the instruction bit).
+    fn bad_instruction(&mut self, packet: &[u8]) -> Option<(Duration, Vec<u8>)> {
+        let (id, unknown) = match self.protocol {
+            Protocol::V1 => {
+                let (id, code, _) = v1::unframe(packet).ok()?;
+                (id, v1::decode_instruction(packet).err().is_some_and(|e| matches!(e, stride_dynamixel::CodecError::UnknownInstruction(c) if c == code)))
+            }
+            Protocol::V2 => {
+                let (id, code, _) = v2::unframe(packet).ok()?;
+                (id, v2::decode_instruction(packet).err().is_some_and(|e| matches!(e, stride_dynamixel::CodecError::UnknownInstruction(c) if c == code)))
+            }
+        };
+        if id == BROADCAST {
+            return None;
+        }
+        let delay = self.delay(id);
+        let fault = self.levers.get(id);
+        let s = self.servo(id)?;
+        s.transient |= ErrorBits::INSTRUCTION;
+        let status = Status {
+            id,
+            error: s.error_byte(&fault, if unknown { 2 } else { 5 }),
+            params: Vec::new(),
+        };
+        Some((delay, self.encode(&status)))
     }
 
     fn advance(&mut self, now: Instant) {
@@ -401,7 +514,7 @@ impl FakeChain {
             Protocol::V2 => v2::decode_instruction(packet),
         };
         let Ok((id, ins)) = decoded else {
-            return Vec::new();
+            return self.bad_instruction(packet).into_iter().collect();
         };
         let mut out = Vec::new();
         match &ins {
@@ -450,6 +563,9 @@ impl FakeChain {
                 out.extend(self.fast_read(&reads));
             }
             Instruction::FastBulkRead { reads } => out.extend(self.fast_read(reads)),
+            // X firmware ignores a broadcast reset of everything (ids would collide).
+            Instruction::FactoryReset { option: 0xff }
+                if id == BROADCAST && self.protocol == Protocol::V2 => {}
             _ if id == BROADCAST => {
                 let ids: Vec<u8> = self.servos.iter().map(|s| s.id).collect();
                 for sid in ids {
@@ -557,6 +673,7 @@ impl FakeChain {
             }
             Instruction::RegWrite { address, data } => {
                 s.registered = Some((*address, data.clone()));
+                s.set("registered", 1);
                 (Vec::new(), 0, level >= 2)
             }
             Instruction::Action => {
@@ -567,11 +684,15 @@ impl FakeChain {
                         Err(2)
                     }
                 };
+                s.set("registered", 0);
                 (Vec::new(), r.err().unwrap_or(0), level >= 2)
             }
-            Instruction::Reboot | Instruction::FactoryReset { .. } => {
-                let (id, model) = (s.id, s.model);
-                *s = Servo::new(id, model);
+            Instruction::Reboot => {
+                s.reboot();
+                (Vec::new(), 0, level >= 2)
+            }
+            Instruction::FactoryReset { option } => {
+                s.factory_reset(*option);
                 (Vec::new(), 0, level >= 2)
             }
             Instruction::Clear { .. } => (Vec::new(), 0, level >= 2),

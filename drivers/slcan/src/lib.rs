@@ -241,15 +241,19 @@ pub enum Message {
     Ok,
     /// BEL: the last command failed.
     Error,
-    /// `z`/`Z` + CR: a transmit command was queued (some firmware).
-    Transmitted,
+    /// `z` (a standard frame) or `Z` (an extended one) + CR: a transmit command was queued.
+    Transmitted {
+        /// True for `Z`, the answer to `T` and `R`.
+        extended: bool,
+    },
     /// A received frame, with its timestamp in ms when timestamps are on.
     Frame(CanFrame, Option<u16>),
     /// `Vhhff`: hardware and firmware versions.
     Version(String),
     /// `Nxxxx`: serial number.
     Serial(String),
-    /// `Fxx`: status flags (bit 2 error warning, 3 data overrun, 5 error passive, 7 bus error).
+    /// `Fxx`: status flags (bit 0 receive FIFO full, 1 transmit FIFO full, 2 error warning,
+    /// 3 data overrun, 5 error passive, 6 arbitration lost, 7 bus error).
     Flags(u8),
 }
 
@@ -259,7 +263,8 @@ impl Message {
         let body = match self {
             Message::Ok => String::new(),
             Message::Error => return Ok(vec![0x07]),
-            Message::Transmitted => "z".into(),
+            Message::Transmitted { extended: false } => "z".into(),
+            Message::Transmitted { extended: true } => "Z".into(),
             Message::Frame(f, stamp) => {
                 let mut s = frame_line(f)?;
                 if let Some(t) = stamp {
@@ -282,7 +287,8 @@ impl Message {
         match line.first() {
             None => Ok(Message::Ok),
             Some(0x07) => Ok(Message::Error),
-            Some(b'z') | Some(b'Z') if line.len() == 1 => Ok(Message::Transmitted),
+            Some(b'z') if line.len() == 1 => Ok(Message::Transmitted { extended: false }),
+            Some(b'Z') if line.len() == 1 => Ok(Message::Transmitted { extended: true }),
             Some(b't' | b'T' | b'r' | b'R') => {
                 let (f, s) = parse_frame(line)?;
                 Ok(Message::Frame(f, s))
@@ -409,6 +415,12 @@ mod tests {
             Message::Version("1013".into())
         );
         assert_eq!(Message::parse(b"F04").unwrap(), Message::Flags(0x04));
+        for extended in [false, true] {
+            let m = Message::Transmitted { extended };
+            let b = m.encode().unwrap();
+            assert_eq!(b, if extended { b"Z\r" } else { b"z\r" });
+            assert_eq!(Message::parse(&b[..1]).unwrap(), m);
+        }
         let (f, t) = parse_frame(b"t58184B41600037020000").unwrap();
         assert_eq!((f.raw_id(), f.data()[4], t), (0x581, 0x37, None));
         let (f, t) = parse_frame(b"t7051051A2B").unwrap();

@@ -78,6 +78,7 @@ fn main() -> anyhow::Result<()> {
     signal_hook::flag::register(signal_hook::consts::SIGTERM, stop.clone())?;
     signal_hook::flag::register(signal_hook::consts::SIGINT, stop.clone())?;
     let chain = FakeChain::new(model.protocol, servos, levers)
+        .at_baud(cli.baud)
         .spawn(Paced::new(Port::new(dev, cli.baud)), stop.clone());
     std::fs::write(&cli.pty_file, &path)?;
     let chain = chain
