@@ -22,7 +22,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use stride_dynamixel::models;
-use stride_dynamixel_bridge::{BridgeConfig, Chain, ReadMode, ServoConfig};
+use stride_dynamixel_bridge::BridgeConfig;
+use stride_dynamixel_chain::{Chain, ReadMode, ServoConfig};
 use stride_fakes::due::{DueConfig, DueLevers, FakeDue};
 use stride_fakes::dynamixel::{ChainLevers, FakeChain, Servo};
 use stride_link::host::Session;
@@ -194,8 +195,8 @@ fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> (f64, f64, f64, u6
         out: out.clone(),
         inn: inn.clone(),
     };
-    let mut c = Chain::new(line, &cfg).unwrap();
-    c.bring_up(0).unwrap();
+    let mut c = Chain::new(line, cfg.chain()).unwrap();
+    c.bring_up().unwrap();
     for _ in 0..20 {
         c.cycle(Instant::now()).unwrap(); // warm up
     }

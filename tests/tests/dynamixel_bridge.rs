@@ -163,3 +163,83 @@ fn the_hexapod_chain_with_an_overheating_and_a_late_servo() {
     let (_, out) = rig.interrupt();
     assert!(out.contains("torque on: []"), "{out}");
 }
+
+#[test]
+fn the_bridge_reconnects_when_its_port_returns_and_does_not_flood_its_log() {
+    if !in_sandbox() {
+        return;
+    }
+    // The port is a symlink, as /dev/serial/by-id/ names are: the chain vanishes, and comes
+    // back on a new terminal behind the same name.
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("ttyUSB-hexapod");
+    let (rig, pty) = chain(dir.path(), &[]);
+    std::os::unix::fs::symlink(&pty, &link).unwrap();
+    let url = udpm_url(7763);
+    let lcm = Lcm::new(&url).unwrap();
+    let states = Arc::new(Mutex::new(Vec::<(Instant, JointStateT)>::new()));
+    let status = Arc::new(Mutex::new(Vec::<NodeStatusT>::new()));
+    let (s1, s2) = (states.clone(), status.clone());
+    let _subs = [
+        lcm.subscribe("HEXAPOD_JOINT_STATE", move |_, m: JointStateT| {
+            s1.lock().unwrap().push((Instant::now(), m))
+        })
+        .unwrap(),
+        lcm.subscribe("STRIDE_STATUS", move |_, m: NodeStatusT| {
+            s2.lock().unwrap().push(m)
+        })
+        .unwrap(),
+    ];
+    let log = dir.path().join("bridge.log");
+    let mut c = Command::new(bin("stride-dynamixel-bridge"));
+    c.args(["--lcm-url", &url, "--log-level", "warn", "--config"])
+        .arg(config(dir.path(), link.to_str().unwrap()))
+        .stderr(std::fs::File::create(&log).unwrap());
+    let bridge = Proc::spawn(c);
+    let said = |f: &dyn Fn(&NodeStatusT) -> bool| {
+        status
+            .lock()
+            .unwrap()
+            .iter()
+            .any(|s| s.node == "stride-dynamixel-bridge" && f(s))
+    };
+    assert!(wait_for(&lcm, 15, || said(
+        &|s| s.state == NodeStatusT::STATE_RUNNING
+    )));
+    // The chain goes away for 2 s.
+    drop(rig);
+    assert!(wait_for(&lcm, 5, || said(&|s| s.state
+        == NodeStatusT::STATE_FAULT
+        && s.detail.contains("servo line"))));
+    wait_for(&lcm, 2, || false);
+    let down_lines = std::fs::read_to_string(&log).unwrap().lines().count();
+    // It comes back behind the same name: the bridge finds it, brings the servos up and
+    // moves them again.
+    let (rig, pty) = chain(dir.path(), &["--ids", "1-18"]);
+    std::fs::remove_file(&link).unwrap();
+    std::os::unix::fs::symlink(&pty, &link).unwrap();
+    let back = Instant::now();
+    let cmd = command(&[("lf_femur", 0.4)]);
+    let moved = wait_for(&lcm, 20, || {
+        lcm.publish("HEXAPOD_JOINT_COMMAND", &cmd).unwrap();
+        std::thread::sleep(Duration::from_millis(20));
+        states
+            .lock()
+            .unwrap()
+            .last()
+            .is_some_and(|(t, s)| *t > back && (s.positions[1] - 0.4).abs() < 0.01)
+    });
+    assert!(
+        moved,
+        "no motion after the port came back: {:?}",
+        status.lock().unwrap().last()
+    );
+    // The outage was said once and retried quietly (50 lines a second in the finding).
+    assert!(
+        down_lines <= 6,
+        "{down_lines} log lines while the port was gone"
+    );
+    let (st, _) = bridge.interrupt();
+    assert!(st.success());
+    drop(rig);
+}

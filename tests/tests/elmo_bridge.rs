@@ -468,10 +468,18 @@ fn the_whole_chain_bridge_lcm_gateway_pty_dongle_drives() {
         .traj_last()
         .is_some_and(|t| t.state == TrajectoryStatusT::STATE_STOPPED
             && t.recovery.contains("next valid trajectory"))));
-    // The next valid trajectory, from where the joints stand, resets the fault and moves.
+    // Once the joints stand still (a trajectory starts from rest: one sent while they
+    // decelerate is refused), the next valid trajectory, from where they stand, resets the
+    // fault and moves.
+    assert!(wait_for(&lcm, 5.0, || w
+        .last_state()
+        .velocities
+        .iter()
+        .all(|v| v.abs() < 1e-3)));
+    let here = w.last_state().positions;
     let mut back = trajectory(0.4, -0.5);
     for row in back.positions.iter_mut() {
-        for (p, q) in row.iter_mut().zip(&last) {
+        for (p, q) in row.iter_mut().zip(&here) {
             *p += q;
         }
     }

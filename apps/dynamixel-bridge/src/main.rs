@@ -8,27 +8,33 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use clap::Parser;
 use stride_dynamixel::{models, Protocol};
-use stride_dynamixel_bridge::{BridgeConfig, Chain};
+use stride_dynamixel_bridge::{health, joint_state, Bridge, BridgeConfig, Note};
 use stride_dynamixel_bus::{Bus, BusConfig};
+use stride_dynamixel_chain::Chain;
 use stride_fakes::dynamixel::{ChainLevers, FakeChain, Servo};
 use stride_lcmtypes::stride::{JointCommandT, NodeStatusT};
-use stride_node::{load_config, Node, NodeArgs, Stamper, Ticker};
+use stride_node::{load_config, Node, NodeArgs, Stamper, Throttle, Ticker};
 use stride_serial::{Paced, Transport};
 
 /// Drive a chain of Dynamixel servos (Protocol 1.0 or 2.0) from LCM joint commands.
 ///
 /// At start it pings every configured servo, checks each is the configured model, sets its
-/// return delay time, position limits (from the joint limits) and speed limit, and turns the
-/// torque on; it refuses to run otherwise, naming the servo. Each cycle it writes every goal in
-/// one sync write and reads every servo's position, speed, load or current, voltage and
-/// temperature (fast sync read on 2.0; bulk read on 1.0 MX chains; one read per servo on AX
-/// chains), and publishes joint states and servo health. A lost reply is asked for again
-/// within a deadline computed from the wire time. Commands beyond a joint's position or
-/// velocity limit are refused whole and reported, never clipped. When commands stop for
-/// hold_timeout_ms the servos hold where they are. On shutdown the torque goes off.
+/// return delay time, position limits (from the joint limits), speed limit and, on Protocol
+/// 2.0 servos, the bus watchdog (bus_watchdog_ms: the servos stop on their own when the bridge
+/// stops talking; AX-12A and other 1.0 servos have none), and turns the torque on; it refuses
+/// to run otherwise, naming the servo. Each cycle it writes every goal in one sync write and
+/// reads every servo's position, speed, load or current, voltage and temperature (fast sync
+/// read on 2.0; bulk read on 1.0 MX chains; one read per servo on AX chains), and publishes
+/// joint states and servo health. A lost reply is asked for again within a deadline computed
+/// from the wire time. Commands with a joint named twice, or beyond a joint's position or
+/// velocity limit, are refused whole and reported, never clipped. When commands stop for
+/// hold_timeout_ms the servos hold where they are. When the port vanishes (the adapter
+/// unplugged) the bridge says so once, tries to open it again with a doubling delay, and when
+/// it is back brings the servos up again, holding where they stand. On shutdown the torque
+/// goes off.
 ///
 /// With --scan it lists what answers on the bus and exits. With port = "sim" the servos are
-/// fakes in this process.
+/// fakes in this process. See config/robots/hexapod-dynamixel.toml.
 #[derive(Parser, Debug)]
 #[command(version, about, long_about)]
 struct Cli {
@@ -69,10 +75,11 @@ fn open_line(
         let servos = cfg
             .servo
             .iter()
-            .map(|s| Servo::new(s.id, models::by_name(&s.model).expect("checked")))
+            .filter_map(|s| models::by_name(&s.model).map(|m| Servo::new(s.id, m)))
             .collect();
         let stop = Arc::new(AtomicBool::new(false));
         let chain = FakeChain::new(protocol, servos, ChainLevers::default())
+            .at_baud(cfg.baud)
             .spawn(Paced::new(dev), stop.clone());
         return Ok((Box::new(host), Some((stop, chain))));
     }
@@ -109,6 +116,25 @@ fn scan(cli: &Cli, cfg: &BridgeConfig, protocol: Protocol) -> anyhow::Result<()>
     Ok(())
 }
 
+/// Writes the bridge's notes, repeats thinned.
+fn log(notes: Vec<Note>, throttle: &mut Throttle) {
+    for n in notes {
+        let (level, text) = match n {
+            Note::Error(m) => (tracing::Level::ERROR, m),
+            Note::Warn(m) => (tracing::Level::WARN, m),
+            Note::Info(m) => (tracing::Level::INFO, m),
+        };
+        let Some(line) = throttle.pass(&text, std::time::Instant::now()) else {
+            continue;
+        };
+        match level {
+            tracing::Level::ERROR => tracing::error!("{line}"),
+            tracing::Level::WARN => tracing::warn!("{line}"),
+            _ => tracing::info!("{line}"),
+        }
+    }
+}
+
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     let cfg: BridgeConfig = load_config(cli.node.config.as_deref())?;
@@ -120,10 +146,9 @@ fn main() -> anyhow::Result<()> {
     let node = Node::start("stride-dynamixel-bridge", &cli.node)?;
     node.set_health(NodeStatusT::STATE_STARTING, "checking the servos");
     let (line, sim) = open_line(&cfg, protocol)?;
-    let mut chain = Chain::new(line, &cfg).map_err(anyhow::Error::msg)?;
-    if let Err(e) = chain.bring_up(cfg.return_delay_us) {
+    let mut chain = Chain::new(line, cfg.chain()).map_err(anyhow::Error::msg)?;
+    if let Err(e) = chain.bring_up() {
         node.set_health(NodeStatusT::STATE_FAULT, format!("refusing to start: {e}"));
-        tracing::error!(error = %e, "refusing to start");
         bail!("refusing to start: {e}");
     }
     tracing::info!(
@@ -131,43 +156,40 @@ fn main() -> anyhow::Result<()> {
         port = cfg.port.as_str(),
         "servos ready, torque on"
     );
+    let mut bridge = Bridge::new(chain, cfg.reconnect_ms);
     // Listen before saying so: a command sent on seeing RUNNING must not be lost.
     let (_sub, rx) = node.queue::<JointCommandT>(&cfg.command_channel)?;
     node.set_running();
-
     let publisher = node.publisher();
+    let mut throttle = Throttle::new(Duration::from_secs(5));
     let mut stamper = Stamper::new("");
     let mut ticker = Ticker::new(cfg.rate_hz);
-    let mut rejected = 0u64;
     while let Some(now) = ticker.wait(&node)? {
         while let Ok(m) = rx.try_recv() {
-            if let Err(e) = chain.command(&m, now) {
-                rejected += 1;
-                tracing::warn!(error = %e, rejected, "command rejected");
-                node.set_health(
-                    NodeStatusT::STATE_DEGRADED,
-                    format!("command rejected: {e}"),
-                );
-            }
+            log(bridge.on_command(&m, now), &mut throttle);
         }
-        if chain.hold_if_stale(now) {
-            tracing::warn!("commands stopped: holding where the servos are");
-            node.set_health(NodeStatusT::STATE_DEGRADED, "commands stopped: holding");
-        }
-        if let Err(e) = chain.cycle(now) {
-            tracing::error!(error = %e, "servo cycle failed");
-            node.set_health(NodeStatusT::STATE_FAULT, format!("servo line: {e}"));
+        let reopen = || -> std::io::Result<Box<dyn Transport>> {
+            Ok(Box::new(stride_serial::open(&cfg.port, cfg.baud)?))
+        };
+        log(bridge.tick(now, reopen), &mut throttle);
+        let (state, detail) = bridge.health();
+        node.set_health(state, detail);
+        if !bridge.up() {
             continue;
         }
         let header = stamper.stamp();
-        if let Err(e) = publisher.publish(&cfg.state_channel, &chain.joint_state(header.clone())) {
+        let states = joint_state(bridge.chain(), header.clone());
+        if let Err(e) = publisher.publish(&cfg.state_channel, &states) {
             tracing::warn!(error = %e, "could not publish joint states");
         }
-        let _ = publisher.publish(&cfg.health_channel, &chain.health(header));
+        let _ = publisher.publish(
+            &cfg.health_channel,
+            &health(bridge.chain(), &cfg.port, header),
+        );
     }
     tracing::info!("torque off");
-    if let Err(e) = chain.torque_off() {
-        tracing::error!(error = %e, "could not turn the torque off");
+    if let Err(e) = bridge.torque_off() {
+        tracing::error!("could not turn the torque off: {e}");
     }
     if let Some((stop, h)) = sim {
         stop.store(true, Ordering::Relaxed);

@@ -12,7 +12,7 @@ use stride_elmo::Master;
 use stride_elmo_bridge::{Bridge, BridgeConfig, Note};
 use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
 use stride_lcmtypes::stride::{JointTrajectoryT, NodeStatusT};
-use stride_node::{load_config, Node, NodeArgs, Stamper};
+use stride_node::{load_config, Node, NodeArgs, Stamper, Throttle};
 
 /// Drive Elmo motion controllers over CANopen from LCM joint trajectories.
 ///
@@ -87,12 +87,21 @@ fn open_bus<'a>(
     )
 }
 
-fn log(notes: Vec<Note>) {
+/// Writes the bridge's notes, repeats thinned.
+fn log(notes: Vec<Note>, throttle: &mut Throttle) {
     for n in notes {
-        match n {
-            Note::Error(m) => tracing::error!("{m}"),
-            Note::Warn(m) => tracing::warn!("{m}"),
-            Note::Info(m) => tracing::info!("{m}"),
+        let (level, text) = match n {
+            Note::Error(m) => (tracing::Level::ERROR, m),
+            Note::Warn(m) => (tracing::Level::WARN, m),
+            Note::Info(m) => (tracing::Level::INFO, m),
+        };
+        let Some(line) = throttle.pass(&text, std::time::Instant::now()) else {
+            continue;
+        };
+        match level {
+            tracing::Level::ERROR => tracing::error!("{line}"),
+            tracing::Level::WARN => tracing::warn!("{line}"),
+            _ => tracing::info!("{line}"),
         }
     }
 }
@@ -120,6 +129,7 @@ fn main() -> anyhow::Result<()> {
     let (_sub, rx) = node.queue::<JointTrajectoryT>(&cfg.trajectory_channel)?;
     node.set_running();
     let publisher = node.publisher();
+    let mut throttle = Throttle::new(Duration::from_secs(5));
     let (mut states, mut statuses) = (Stamper::new(""), Stamper::new(""));
     let period = Duration::from_secs_f64(1.0 / cfg.state_rate_hz);
     let (mut next_state, mut next_status) = (Instant::now(), Instant::now());
@@ -131,9 +141,9 @@ fn main() -> anyhow::Result<()> {
         }
         let now = Instant::now();
         while let Ok(m) = rx.try_recv() {
-            log(bridge.on_trajectory(&m, now));
+            log(bridge.on_trajectory(&m, now), &mut throttle);
         }
-        log(bridge.tick(now));
+        log(bridge.tick(now), &mut throttle);
         let h = bridge.health().clone();
         node.set_health(h.state, h.detail);
         if now >= next_state {

@@ -26,9 +26,11 @@
 mod config;
 mod heartbeat;
 mod stamp;
+mod throttle;
 
 pub use config::load_config;
 pub use stamp::Stamper;
+pub use throttle::Throttle;
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -146,6 +146,15 @@ impl<T: Transport> Bus<T> {
         }
     }
 
+    /// Puts the bus on another line (the port came back after it vanished): what the old
+    /// line held is dropped.
+    pub fn replace_line(&mut self, line: T) {
+        self.line = line;
+        self.s1.clear();
+        self.s2.clear();
+        self.stale = None;
+    }
+
     /// The settings.
     pub fn config(&self) -> &BusConfig {
         &self.cfg

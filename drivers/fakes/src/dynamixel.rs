@@ -69,6 +69,8 @@ pub struct Servo {
     registered: Option<(u16, Vec<u8>)>,
     /// Error bits of the last instruction (Protocol 1.0 angle limit, range, instruction).
     transient: u8,
+    /// Seconds since an instruction last concerned this servo (its bus watchdog's clock).
+    silent_for: f64,
 }
 
 impl Servo {
@@ -87,6 +89,7 @@ impl Servo {
             position: 0.0,
             registered: None,
             transient: 0,
+            silent_for: 0.0,
         };
         for item in model.items.values() {
             let b = item.encode(item.default);
@@ -151,6 +154,12 @@ impl Servo {
         *self = fresh;
     }
 
+    /// The value of control-table item `name` (0 when the model has none), as the servo
+    /// holds it: a bench instrument's view.
+    pub fn item(&self, name: &str) -> i64 {
+        self.get(name)
+    }
+
     /// True while its torque is on.
     pub fn torque_on(&self) -> bool {
         self.get("torque_enable") == 1
@@ -206,8 +215,21 @@ impl Servo {
         (v1e, hw)
     }
 
+    /// The bus watchdog (2.0, item 98, in 20 ms): when no instruction concerned the servo
+    /// for that long while its torque is on, it stops where it is and reports -1; its goals
+    /// stay refused until the item is written 0.
+    fn watch_bus(&mut self, dt: f64) {
+        self.silent_for += dt;
+        let units = self.get("bus_watchdog");
+        if units > 0 && self.torque_on() && self.silent_for > units as f64 * 0.020 {
+            self.set("bus_watchdog", -1);
+            self.set("goal_position", self.position.round() as i64);
+        }
+    }
+
     /// Advances the servo by `dt` under `fault`: sensors, motion, shutdown.
     fn advance(&mut self, dt: f64, fault: &Fault) {
+        self.watch_bus(dt);
         let volts = fault.voltage.unwrap_or(12.0);
         self.set(
             "present_voltage",
@@ -303,6 +325,7 @@ impl Servo {
             return Err(4);
         }
         let torque_on = self.get("torque_enable") == 1;
+        let watchdog_tripped = self.get("bus_watchdog") == -1;
         let mut next = self.table.clone();
         next[a..a + n].copy_from_slice(data);
         for (name, item) in &self.model.items {
@@ -312,6 +335,9 @@ impl Servo {
             }
             if item.access == Access::Read {
                 self.transient |= ErrorBits::RANGE;
+                return Err(7);
+            }
+            if watchdog_tripped && name.starts_with("goal_") {
                 return Err(7);
             }
             // 2.0 writes whole items: less than one is a data length error.
@@ -335,6 +361,10 @@ impl Servo {
         }
         self.table = next;
         self.id = self.get("id") as u8;
+        if (a..a + n).contains(&98) && self.model.item("bus_watchdog").is_some() {
+            // A new watchdog time (or 0, which clears its error) counts from now.
+            self.silent_for = 0.0;
+        }
         Ok(())
     }
 
@@ -516,6 +546,26 @@ impl FakeChain {
         let Ok((id, ins)) = decoded else {
             return self.bad_instruction(packet).into_iter().collect();
         };
+        let concerned: Vec<u8> = match &ins {
+            Instruction::SyncWrite { data, .. } => data.iter().map(|d| d.0).collect(),
+            Instruction::BulkWrite { writes } => writes.iter().map(|w| w.0).collect(),
+            Instruction::SyncRead { ids, .. } | Instruction::FastSyncRead { ids, .. } => {
+                ids.clone()
+            }
+            Instruction::BulkRead { reads } | Instruction::FastBulkRead { reads } => {
+                reads.iter().map(|r| r.0).collect()
+            }
+            _ if id == BROADCAST => self.servos.iter().map(|s| s.id).collect(),
+            _ => vec![id],
+        };
+        let levers = &self.levers;
+        for s in self
+            .servos
+            .iter_mut()
+            .filter(|s| concerned.contains(&s.id) && !levers.get(s.id).silent)
+        {
+            s.silent_for = 0.0;
+        }
         let mut out = Vec::new();
         match &ins {
             Instruction::SyncWrite { address, data, .. } => {
