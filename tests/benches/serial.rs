@@ -26,8 +26,8 @@ use stride_dynamixel_bridge::BridgeConfig;
 use stride_dynamixel_chain::{Chain, ReadMode, ServoConfig};
 use stride_fakes::due::{DueConfig, DueLevers, FakeDue};
 use stride_fakes::dynamixel::{ChainLevers, FakeChain, Servo};
-use stride_link::host::Session;
 use stride_link::{JointCommand, Message, Mode};
+use stride_link_host::Session;
 use stride_serial::{pty_pair, wire_time, Paced, Transport};
 use stride_tests as _;
 

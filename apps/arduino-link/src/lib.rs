@@ -107,23 +107,27 @@ impl LinkConfig {
     }
 
     /// Checks a command against every limit and turns it into the board's set-points; nothing
-    /// of a command that breaks one is sent.
+    /// of a command that breaks one is sent. Each joint named once; duty within its
+    /// `max_duty`, position within its limits (the check every bridge makes, `stride-limits`).
     pub fn to_board(&self, c: &JointCommandT) -> Result<Vec<JointCommand>, Reject> {
-        let n = c.names.len();
-        if c.modes.len() != n || c.setpoints.len() != n {
-            return Err(Reject::Malformed);
-        }
-        let mut out = Vec::with_capacity(n);
-        for k in 0..n {
-            let j = self
-                .joint
-                .iter()
-                .find(|j| j.name == c.names[k])
-                .ok_or_else(|| Reject::UnknownJoint(c.names[k].clone()))?;
+        stride_limits::lengths(
+            c.names.len(),
+            &[("modes", c.modes.len()), ("set-points", c.setpoints.len())],
+        )?;
+        let cols =
+            stride_limits::columns(&c.names, |n| self.joint.iter().position(|j| j.name == n))?;
+        let mut out = Vec::with_capacity(cols.len());
+        for (k, &i) in cols.iter().enumerate() {
+            let j = &self.joint[i];
             let v = c.setpoints[k];
+            let limits = stride_limits::Limits {
+                min_position: j.min_position,
+                max_position: j.max_position,
+                max_velocity: f64::INFINITY,
+            };
             let (mode, value) = match c.modes[k] {
                 JointCommandT::MODE_DUTY => {
-                    if v.abs() > j.max_duty || v.is_nan() {
+                    if v.is_nan() || v.abs() > j.max_duty {
                         return Err(Reject::Limit {
                             joint: j.name.clone(),
                             what: format!("duty {v:.3} beyond ±{}", j.max_duty),
@@ -132,20 +136,17 @@ impl LinkConfig {
                     (Mode::Duty, (v * 10_000.0).round() as i16)
                 }
                 JointCommandT::MODE_POSITION => {
-                    if !(j.min_position..=j.max_position).contains(&v) {
-                        return Err(Reject::Limit {
-                            joint: j.name.clone(),
-                            what: format!(
-                                "position {v:.4} rad outside [{}, {}]",
-                                j.min_position, j.max_position
-                            ),
-                        });
-                    }
+                    limits.position(&j.name, v)?;
                     (Mode::Position, (v * 10_000.0).round() as i16)
                 }
                 JointCommandT::MODE_BRAKE => (Mode::Brake, 0),
                 JointCommandT::MODE_DISABLE => (Mode::Coast, 0),
-                _ => return Err(Reject::Mode(j.name.clone())),
+                _ => {
+                    return Err(Reject::Mode {
+                        joint: j.name.clone(),
+                        what: "the board takes duty, position, brake and disable".into(),
+                    })
+                }
             };
             out.push(JointCommand {
                 joint: j.index,
@@ -171,27 +172,8 @@ impl LinkConfig {
     }
 }
 
-/// Why a command was refused.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum Reject {
-    /// A joint this board does not drive.
-    #[error("unknown joint {0}")]
-    UnknownJoint(String),
-    /// Velocity and current modes are not the board's.
-    #[error("joint {0}: the board takes duty, position, brake and disable")]
-    Mode(String),
-    /// Beyond a limit.
-    #[error("joint {joint}: {what}")]
-    Limit {
-        /// The joint.
-        joint: String,
-        /// Which limit, by how much.
-        what: String,
-    },
-    /// Arrays of different lengths.
-    #[error("malformed command: arrays of different lengths")]
-    Malformed,
-}
+/// Why a command was refused: the check every bridge makes.
+pub use stride_limits::Reject;
 
 /// MPU-6050 at ±2 g and ±250 °/s: counts per g and per rad/s.
 pub const ACCEL_COUNTS_PER_G: f64 = 16_384.0;
@@ -375,12 +357,20 @@ mod tests {
         ));
         assert!(matches!(
             cfg.to_board(&cmd(knee, JointCommandT::MODE_CURRENT, 1.0)),
-            Err(Reject::Mode(_))
+            Err(Reject::Mode { .. })
         ));
         assert!(matches!(
             cfg.to_board(&cmd(knee, JointCommandT::MODE_DUTY, f64::NAN)),
             Err(Reject::Limit { .. })
         ));
+        let mut twice = cmd(knee, JointCommandT::MODE_DUTY, 0.1);
+        twice.names.push(knee.clone());
+        twice.modes.push(JointCommandT::MODE_DUTY);
+        twice.setpoints.push(-0.1);
+        assert_eq!(
+            cfg.to_board(&twice),
+            Err(Reject::DuplicateJoint(knee.clone()))
+        );
     }
 
     #[test]

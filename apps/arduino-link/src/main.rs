@@ -10,8 +10,8 @@ use stride_arduino_link::{
 };
 use stride_fakes::due::{DueConfig, DueLevers, FakeDue};
 use stride_lcmtypes::stride::{JointCommandT, NodeStatusT};
-use stride_link::host::Session;
 use stride_link::{JointCommand, Message, Mode};
+use stride_link_host::Session;
 use stride_node::{load_config, Node, NodeArgs, Stamper, Ticker};
 use stride_serial::{Paced, Transport};
 

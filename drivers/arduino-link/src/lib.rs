@@ -1,11 +1,10 @@
 //! The stride Arduino link (`SPEC.md` in this crate, version 1.0): frames of type, sequence
 //! number, length, payload and CRC-16/CCITT, COBS-encoded and delimited by `0x00`, and the
-//! messages between the host and a joint-controller board. The codec is pure (no I/O); [`host`]
-//! drives a session (handshake, commands, heartbeats, what the board sends) over any serial
-//! [`stride_serial::Transport`]. The same codec exists in portable C (`c/stride_link.h`,
-//! `c/stride_link.c`) for the firmware; the test suite checks the two against each other.
-
-pub mod host;
+//! messages between the host and a joint-controller board. The codec is pure (no I/O); the
+//! host side of a session (handshake, commands, heartbeats, what the board sends) over a
+//! serial line is `stride-link-host`'s. The same codec exists in portable C
+//! (`c/stride_link.h`, `c/stride_link.c`) for the firmware; the test suite checks the two
+//! against each other.
 
 /// Protocol version this codec speaks.
 pub const MAJOR: u8 = 1;

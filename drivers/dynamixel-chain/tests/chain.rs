@@ -299,7 +299,12 @@ fn protocol_2_servos_stop_on_their_own_when_the_host_goes_quiet() {
     let (lo, hi) = (j.cfg.min_position, j.cfg.max_position);
     let far = lo + 0.9 * (hi - lo);
     s.chain
-        .command(std::slice::from_ref(&j.cfg.name), &[far], &[0.0], Instant::now())
+        .command(
+            std::slice::from_ref(&j.cfg.name),
+            &[far],
+            &[0.0],
+            Instant::now(),
+        )
         .unwrap();
     for _ in 0..5 {
         s.chain.cycle(Instant::now()).unwrap();

@@ -1,4 +1,5 @@
-//! The host side of a session with a board, over any serial [`Transport`]: the handshake (sent
+//! The host side of a session with one of Archie's Arduino joint-controller boards (the
+//! protocol is `stride-link`'s), over any serial [`Transport`]: the handshake (sent
 //! again until the board answers, which covers the reset that opening its port causes), frames
 //! out with the host's sequence numbers, and the board's messages in.
 
@@ -7,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use stride_serial::Transport;
 
-use crate::{BoardInfo, Decoder, DecoderStats, Frame, Message, MAJOR, MINOR};
+use stride_link::{BoardInfo, Decoder, DecoderStats, Frame, Message, MAJOR, MINOR};
 
 /// Why a session failed.
 #[derive(Debug, thiserror::Error)]
@@ -116,7 +117,7 @@ impl<T: Transport> Session<T> {
                             return Ok(b);
                         }
                         Message::Nack {
-                            reason: crate::nack::VERSION,
+                            reason: stride_link::nack::VERSION,
                             ..
                         } => {
                             return Err(SessionError::Version { major: 0, minor: 0 });

@@ -5,8 +5,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use stride_fakes::due::{DueConfig, DueLevers, FakeDue};
-use stride_link::host::Session;
 use stride_link::{fault, nack, JointCommand, Message, Mode};
+use stride_link_host::Session;
 use stride_serial::{pty_pair, Paced, Port};
 
 type Line = Port<serialport::TTYPort>;
