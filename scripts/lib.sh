@@ -13,7 +13,7 @@ STRIDE_PACKAGES=(
     g++                               # the Due firmware's host syntax check (scripts/firmware)
     gcc-avr avr-libc                  # the link codec built for the ATmega32U4 (scripts/firmware)
     iproute2 util-linux               # ip, unshare: the private test network
-    python3 python3-pip               # bench tables; the newer-liblcm check in scripts/test
+    python3 python3-pip python3-venv  # bench tables; the newer-liblcm check; the peers' venv
     default-jdk-headless libjchart2d-java # the Java types and lcm-spy (scripts/spy)
 )
 
@@ -51,6 +51,22 @@ bootstrap() {
     ensure_packages "$@"
     ensure_rust
     cd "$STRIDE_ROOT"
+}
+
+# The third-party peers of the conformance tests (python-can, python-canopen, dynamixel_sdk),
+# pinned in tests/peers/requirements.txt, in a venv under target/peers; installed again only
+# when the requirements change. Exports STRIDE_PEERS_PYTHON and STRIDE_REQUIRE_PEERS.
+ensure_peers() {
+    local venv="$STRIDE_ROOT/target/peers" req="$STRIDE_ROOT/tests/peers/requirements.txt"
+    local stamp="$venv/.requirements"
+    if [ ! -x "$venv/bin/python" ] || ! cmp -s "$req" "$stamp"; then
+        say "installing the third-party peers into target/peers (tests/peers/requirements.txt)"
+        rm -rf "$venv"
+        python3 -m venv "$venv"
+        "$venv/bin/pip" install -q --disable-pip-version-check -r "$req"
+        cp "$req" "$stamp"
+    fi
+    export STRIDE_PEERS_PYTHON="$venv/bin/python" STRIDE_REQUIRE_PEERS=1
 }
 
 # Runs a command inside a private network namespace whose only interface is a loopback with a
