@@ -564,6 +564,17 @@ impl<B: CanBus> Master<B> {
         }
     }
 
+    /// Rows each drive holds in its table and has not played yet (as the master counts them
+    /// from the read pointers the drives report), in configuration order: a playing axis at 0
+    /// has run dry.
+    pub fn table_depths(&self) -> Vec<(bool, u64)> {
+        self.track
+            .axes
+            .iter()
+            .map(|a| (a.playing, a.queue.pending()))
+            .collect()
+    }
+
     /// True when no axis has motion queued or playing.
     pub fn idle(&self) -> bool {
         self.track

@@ -1,0 +1,408 @@
+//! The CAN bus under a robot's load, and SLCAN against its line:
+//!
+//! - twelve Elmo axes streamed by stride-elmo's master on the modelled 1 Mbit/s bus (frames
+//!   take their exact wire time, stuff bits counted): set-points at 200 Hz (PVT rows 5 ms
+//!   apart, appended as a stream of 100 ms chunks, the way a walking controller sends them),
+//!   joint states at 100 Hz (a SYNC every 10 ms, each drive's state PDO), the master's and the
+//!   drives' heartbeats. Measured: bus load, the host's CPU per 10 ms cycle, each set-point's
+//!   latency from the master's send to the drive, the lowest table depth a playing drive had,
+//!   and underflows, over the whole run;
+//! - frames per second through an SLCAN dongle on a pseudo-terminal (the host's SlcanBus, the
+//!   fake dongle, the modelled bus) against the bus's own limit for the same frames, host to
+//!   bus and bus to host.
+//!
+//! `cargo bench -p stride-tests --bench can [-- --secs S]` (scripts/bench can).
+
+use std::collections::{HashMap, VecDeque};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use serialport::SerialPort;
+use stride_canbus::{BusError, CanBus, CanFrame, MemBus, MemNode};
+use stride_elmo::{JointConfig, Master, MasterConfig, Motion, Start, Trajectory};
+use stride_fakes::dongle::FakeDongle;
+use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
+use stride_tests as _;
+
+fn pct(v: &mut [f64], p: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[((p / 100.0) * (v.len() - 1) as f64).round() as usize]
+}
+
+/// This thread's CPU time.
+fn cpu() -> Duration {
+    let mut t = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes the timespec it is given.
+    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) };
+    Duration::new(t.tv_sec as u64, t.tv_nsec as u32)
+}
+
+/// The master's bus, noting when each set-point frame (RPDO3) was handed to it.
+struct Noting {
+    inner: MemNode,
+    sent: Arc<Mutex<HashMap<u32, VecDeque<(Instant, [u8; 8])>>>>,
+}
+
+impl CanBus for Noting {
+    fn send(&mut self, f: &CanFrame, deadline: Instant) -> Result<(), BusError> {
+        self.inner.send(f, deadline)?;
+        if (0x401..=0x47f).contains(&f.raw_id()) {
+            let mut d = [0u8; 8];
+            d[..f.data().len()].copy_from_slice(f.data());
+            self.sent
+                .lock()
+                .unwrap()
+                .entry(f.raw_id())
+                .or_default()
+                .push_back((Instant::now(), d));
+        }
+        Ok(())
+    }
+    fn recv(&mut self, deadline: Instant) -> Result<CanFrame, BusError> {
+        self.inner.recv(deadline)
+    }
+}
+
+fn joint(i: u8) -> JointConfig {
+    JointConfig {
+        name: format!("axis{i}"),
+        node: i,
+        counts_per_rev: 4096.0,
+        gear_ratio: 100.0,
+        min_position: -1.0,
+        max_position: 1.0,
+        max_velocity: 3.0,
+        max_acceleration: 30.0,
+        tolerance: 0.02,
+    }
+}
+
+/// 100 ms from `t0` s of each axis's motion, rows 5 ms apart: a 0.3 rad sine at 0.5 Hz (its
+/// phase by axis) whose amplitude grows smoothly from 0 over the first second, so that every
+/// axis starts at rest where it stands.
+fn chunk(axes: u8, t0: f64, first: bool) -> Trajectory {
+    let rows = 21;
+    let w = std::f64::consts::TAU * 0.5;
+    let ramp = |t: f64| {
+        if t < 1.0 {
+            t * t * (3.0 - 2.0 * t)
+        } else {
+            1.0
+        }
+    };
+    let dramp = |t: f64| if t < 1.0 { 6.0 * t * (1.0 - t) } else { 0.0 };
+    let phase = |a: u8| a as f64 * 0.5;
+    let p = |a: u8, t: f64| 0.3 * ramp(t) * ((w * t + phase(a)).sin() - phase(a).sin());
+    let v = |a: u8, t: f64| {
+        0.3 * dramp(t) * ((w * t + phase(a)).sin() - phase(a).sin())
+            + 0.3 * ramp(t) * w * (w * t + phase(a)).cos()
+    };
+    let at = |k: usize| t0 + k as f64 * 0.005;
+    Trajectory {
+        joints: (1..=axes).map(|i| format!("axis{i}")).collect(),
+        times: (0..rows).map(|k| k as f64 * 0.005).collect(),
+        positions: (0..rows)
+            .map(|k| (1..=axes).map(|a| p(a, at(k))).collect())
+            .collect(),
+        velocities: (0..rows)
+            .map(|k| (1..=axes).map(|a| v(a, at(k))).collect())
+            .collect(),
+        start: if first { Start::Now } else { Start::Append },
+    }
+}
+
+struct Axes {
+    load: f64,
+    frames_per_s: f64,
+    cpu_mean_us: f64,
+    cpu_p99_us: f64,
+    cpu_max_us: f64,
+    latency_p50_us: f64,
+    latency_max_us: f64,
+    rows: u64,
+    min_depth: u64,
+    underflows: u64,
+    stream_stops: u64,
+    refused: u64,
+    faults: usize,
+    secs: f64,
+}
+
+fn twelve_axes(secs: f64) -> Axes {
+    let n = 12u8;
+    let bus = MemBus::new(1_000_000);
+    let stop = Arc::new(AtomicBool::new(false));
+    let drives: Vec<_> = (1..=n)
+        .map(|i| {
+            let mut c = ElmoConfig::new(i);
+            c.following_error_window = 1_000_000;
+            FakeElmo::new(c, Levers::default()).spawn(bus.node(), stop.clone())
+        })
+        .collect();
+    // The drives' side of the wire: when each set-point reached them.
+    let sent: Arc<Mutex<HashMap<u32, VecDeque<(Instant, [u8; 8])>>>> = Arc::default();
+    let latencies: Arc<Mutex<Vec<f64>>> = Arc::default();
+    let sniffer = {
+        let mut node = bus.node();
+        let (sent, lat, stop) = (sent.clone(), latencies.clone(), stop.clone());
+        std::thread::spawn(move || {
+            while !stop.load(Ordering::Relaxed) {
+                let Ok(f) = node.recv(Instant::now() + Duration::from_millis(5)) else {
+                    continue;
+                };
+                if !(0x401..=0x47f).contains(&f.raw_id()) {
+                    continue;
+                }
+                let now = Instant::now();
+                let mut s = sent.lock().unwrap();
+                if let Some(q) = s.get_mut(&f.raw_id()) {
+                    if let Some((t, _)) = q.pop_front() {
+                        lat.lock().unwrap().push((now - t).as_secs_f64() * 1e6);
+                    }
+                }
+            }
+        })
+    };
+    let cfg = MasterConfig {
+        motion: Motion::Pvt,
+        sync_period: Duration::from_millis(10),
+        ..Default::default()
+    };
+    let link = Noting {
+        inner: bus.node(),
+        sent: sent.clone(),
+    };
+    let mut m = Master::new(link, (1..=n).map(joint).collect(), cfg).unwrap();
+    m.bring_up().unwrap();
+    let t_start = Instant::now();
+    let busy0 = bus.stats();
+    let mut cycle_cpu = Vec::new();
+    let (mut cpu_acc, mut next_cycle) =
+        (Duration::ZERO, Instant::now() + Duration::from_millis(10));
+    let mut min_depth = u64::MAX;
+    let mut faults = 0;
+    let mut t_stream = 0.0;
+    // Each chunk goes out 200 ms before the queue ends, as a controller keeps ahead of its
+    // bridge (the rows go to the drives 100 ms ahead).
+    let mut next_chunk = Instant::now();
+    let end = t_start + Duration::from_secs_f64(secs);
+    while Instant::now() < end {
+        let now = Instant::now();
+        if now >= next_chunk {
+            let c0 = cpu();
+            let first = t_stream == 0.0;
+            if m.load(&chunk(n, t_stream, first), now).is_ok() {
+                t_stream += 0.1;
+            }
+            cpu_acc += cpu() - c0;
+            next_chunk = m.status().queued_until.unwrap_or(now) - Duration::from_millis(200);
+        }
+        let c0 = cpu();
+        m.pump(now).unwrap();
+        cpu_acc += cpu() - c0;
+        faults += m.take_events().iter().filter(|e| e.is_fault()).count();
+        for (playing, depth) in m.table_depths() {
+            if playing && now > t_start + Duration::from_millis(300) {
+                min_depth = min_depth.min(depth);
+            }
+        }
+        if now >= next_cycle {
+            cycle_cpu.push(cpu_acc.as_secs_f64() * 1e6);
+            cpu_acc = Duration::ZERO;
+            next_cycle += Duration::from_millis(10);
+        }
+        let wake = m.next_wake().min(next_chunk).min(next_cycle);
+        if let Some(w) = wake.checked_duration_since(Instant::now()) {
+            std::thread::sleep(w.min(Duration::from_millis(2)));
+        }
+    }
+    let elapsed = t_start.elapsed().as_secs_f64();
+    let stats = bus.stats();
+    let busy = (stats.busy - busy0.busy).as_secs_f64();
+    let frames = stats.frames - busy0.frames;
+    let c = m.status().counters;
+    m.shutdown();
+    stop.store(true, Ordering::Relaxed);
+    for d in drives {
+        let _ = d.join();
+    }
+    let _ = sniffer.join();
+    let mut lat = latencies.lock().unwrap().clone();
+    let rows = lat.len() as u64;
+    let mean = cycle_cpu.iter().sum::<f64>() / cycle_cpu.len().max(1) as f64;
+    Axes {
+        load: busy / elapsed,
+        frames_per_s: frames as f64 / elapsed,
+        cpu_mean_us: mean,
+        cpu_p99_us: pct(&mut cycle_cpu.clone(), 99.0),
+        cpu_max_us: cycle_cpu.iter().copied().fold(0.0, f64::max),
+        latency_p50_us: pct(&mut lat, 50.0),
+        latency_max_us: lat.iter().copied().fold(0.0, f64::max),
+        rows,
+        min_depth: if min_depth == u64::MAX { 0 } else { min_depth },
+        underflows: c.underflows,
+        stream_stops: c.stream_stops,
+        refused: c.refused,
+        faults,
+        secs: elapsed,
+    }
+}
+
+struct Slcan {
+    to_bus: f64,
+    to_host: f64,
+    limit: f64,
+    frames: usize,
+}
+
+/// Frames per second through an SLCAN dongle on a pty, each way, against the bus's limit.
+fn slcan(frames: usize) -> Slcan {
+    let bus = MemBus::new(1_000_000);
+    let (host_end, mut dongle_end) = serialport::TTYPort::pair().unwrap();
+    dongle_end.set_timeout(Duration::from_millis(2)).unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let dongle = FakeDongle::new(dongle_end, bus.node()).spawn(stop.clone());
+    let mut host = stride_canbus::slcan::SlcanBus::open(
+        host_end,
+        stride_slcan::BitRate::M1,
+        Duration::from_secs(1),
+    )
+    .unwrap();
+    let f = CanFrame::standard(0x321, &[0x55, 0xaa, 0x55, 0xaa, 0x55, 0xaa, 0x55, 0xaa]).unwrap();
+    let limit = 1e6 / f.wire_bits() as f64;
+    // Host to bus: a node counts what arrives.
+    let mut sink = bus.node();
+    let count = std::thread::spawn(move || {
+        let mut got = 0;
+        let mut first = None;
+        let mut last = Instant::now();
+        while got < frames {
+            if sink.recv(Instant::now() + Duration::from_secs(2)).is_ok() {
+                first.get_or_insert_with(Instant::now);
+                last = Instant::now();
+                got += 1;
+            } else {
+                break;
+            }
+        }
+        (got, first.map(|t| last - t))
+    });
+    let mut sent = 0;
+    while sent < frames {
+        match host.send(&f, Instant::now() + Duration::from_secs(1)) {
+            Ok(()) => sent += 1,
+            // The dongle's queue is full (BEL): the bus is the limit; try again.
+            Err(BusError::TxQueueFull) => {}
+            Err(e) => panic!("{e}"),
+        }
+    }
+    let (got, span) = count.join().unwrap();
+    assert_eq!(got, frames);
+    let to_bus = (frames - 1) as f64 / span.unwrap().as_secs_f64();
+    // Bus to host: a node sends as fast as the bus takes them.
+    let mut source = bus.node();
+    let feeder = std::thread::spawn(move || {
+        let mut n = 0;
+        while n < frames {
+            match source.send(&f, Instant::now()) {
+                Ok(()) => n += 1,
+                Err(_) => std::thread::sleep(Duration::from_micros(100)),
+            }
+        }
+    });
+    let mut got = 0;
+    let mut first = None;
+    let mut last = Instant::now();
+    while got < frames {
+        if let Ok(r) = host.recv(Instant::now() + Duration::from_secs(2)) {
+            if r.raw_id() == 0x321 {
+                first.get_or_insert_with(Instant::now);
+                last = Instant::now();
+                got += 1;
+            }
+        } else {
+            break;
+        }
+    }
+    feeder.join().unwrap();
+    stop.store(true, Ordering::Relaxed);
+    let _ = dongle.join();
+    assert_eq!(got, frames, "frames lost from bus to host");
+    Slcan {
+        to_bus,
+        to_host: (frames - 1) as f64 / (last - first.unwrap()).as_secs_f64(),
+        limit,
+        frames,
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let arg = |name: &str, default: f64| {
+        args.iter()
+            .position(|a| a == name)
+            .and_then(|i| args.get(i + 1))
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(default)
+    };
+    let secs = arg("--secs", 600.0);
+    eprintln!("twelve axes for {secs} s ...");
+    let a = twelve_axes(secs);
+    eprintln!("SLCAN through a pty ...");
+    let s = slcan(20_000);
+    let verdict = |ok: bool| if ok { "pass" } else { "FAIL" };
+    println!("| figure | measured | bar | verdict |");
+    println!("|---|---|---|---|");
+    println!(
+        "| bus load, 12 axes (PVT rows at 200 Hz, states at 100 Hz) | {:.1} % ({:.0} frames/s) | < 50 % | {} |",
+        a.load * 100.0,
+        a.frames_per_s,
+        verdict(a.load < 0.5)
+    );
+    println!(
+        "| buffer underflows over {:.0} s | {} (streams stopped {}, trajectories refused {}, drive faults {}) | 0 | {} |",
+        a.secs,
+        a.underflows,
+        a.stream_stops,
+        a.refused,
+        a.faults,
+        verdict(a.underflows == 0 && a.stream_stops == 0 && a.faults == 0)
+    );
+    println!(
+        "| lowest table depth of a playing drive | {} rows ({:.0} ms of motion) | ≥ 1 | {} |",
+        a.min_depth,
+        a.min_depth as f64 * 5.0,
+        verdict(a.min_depth >= 1)
+    );
+    println!(
+        "| set-point latency, master to drive (p50 / worst of {} rows) | {:.0} µs / {:.0} µs | | |",
+        a.rows, a.latency_p50_us, a.latency_max_us
+    );
+    println!(
+        "| host CPU per 10 ms cycle (mean / p99 / worst) | {:.0} µs / {:.0} µs / {:.0} µs | | |",
+        a.cpu_mean_us, a.cpu_p99_us, a.cpu_max_us
+    );
+    println!(
+        "| SLCAN host to bus ({} 8-byte frames) | {:.0} frames/s = {:.3} of the bus's {:.0} | ≥ 0.9 | {} |",
+        s.frames,
+        s.to_bus,
+        s.to_bus / s.limit,
+        s.limit,
+        verdict(s.to_bus / s.limit >= 0.9)
+    );
+    println!(
+        "| SLCAN bus to host ({} 8-byte frames) | {:.0} frames/s = {:.3} of the bus's {:.0} | ≥ 0.9 | {} |",
+        s.frames,
+        s.to_host,
+        s.to_host / s.limit,
+        s.limit,
+        verdict(s.to_host / s.limit >= 0.9)
+    );
+}
