@@ -44,10 +44,13 @@ fn cpu() -> Duration {
     Duration::new(t.tv_sec as u64, t.tv_nsec as u32)
 }
 
-/// The master's bus, noting when each set-point frame (RPDO3) was handed to it.
+/// When each set-point frame (RPDO3) was handed to the bus, by identifier, oldest first.
+type Sent = Arc<Mutex<HashMap<u32, VecDeque<(Instant, [u8; 8])>>>>;
+
+/// The master's bus, noting when each set-point frame was handed to it.
 struct Noting {
     inner: MemNode,
-    sent: Arc<Mutex<HashMap<u32, VecDeque<(Instant, [u8; 8])>>>>,
+    sent: Sent,
 }
 
 impl CanBus for Noting {
@@ -147,7 +150,7 @@ fn twelve_axes(secs: f64) -> Axes {
         })
         .collect();
     // The drives' side of the wire: when each set-point reached them.
-    let sent: Arc<Mutex<HashMap<u32, VecDeque<(Instant, [u8; 8])>>>> = Arc::default();
+    let sent: Sent = Arc::default();
     let latencies: Arc<Mutex<Vec<f64>>> = Arc::default();
     let sniffer = {
         let mut node = bus.node();
