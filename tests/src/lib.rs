@@ -91,6 +91,47 @@ pub fn lcm_logger(url: &str, channels: &str, path: &std::path::Path, probe: &str
     panic!("lcm-logger recorded nothing on {probe} within 20 s");
 }
 
+/// Starts a fake-device process (`fake-can-rig`, `fake-dynamixel-chain`, `fake-due`) with
+/// `args` on a pseudo-terminal whose path it writes into `dir`; returns the process and that
+/// path once it is there.
+pub fn pty_rig(dir: &std::path::Path, name: &str, args: &[&str]) -> (Proc, String) {
+    let tag = args.join("_").replace(['/', ':', ',', ' '], "-");
+    let pty_file = dir.join(format!("{name}-{tag}.pty"));
+    let mut c = Command::new(bin(name));
+    c.arg("--pty-file").arg(&pty_file).args(args);
+    let p = Proc::spawn(c);
+    (p, wait_pty(&pty_file))
+}
+
+/// Waits (up to 10 s) until a fake device has written its terminal's path to `pty_file`;
+/// returns the path.
+pub fn wait_pty(pty_file: &std::path::Path) -> String {
+    let t0 = Instant::now();
+    while std::fs::metadata(pty_file).map_or(true, |m| m.len() == 0) {
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "{} never came",
+            pty_file.display()
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    std::thread::sleep(Duration::from_millis(50));
+    std::fs::read_to_string(pty_file).unwrap()
+}
+
+/// Starts stride-usb2can on `url` for the SLCAN dongle on terminal `pty` as bus `bus`, its
+/// frames logged to `candump`, with `extra` flags.
+pub fn usb2can(url: &str, bus: &str, pty: &str, candump: &std::path::Path, extra: &[&str]) -> Proc {
+    let mut c = Command::new(bin("stride-usb2can"));
+    c.args(["--lcm-url", url, "--log-level", "error", "--bus-name", bus])
+        .arg("--device")
+        .arg(format!("slcan:{pty}"))
+        .arg("--candump")
+        .arg(candump)
+        .args(extra);
+    Proc::spawn(c)
+}
+
 /// A child process killed (SIGINT, then SIGKILL) when dropped.
 #[derive(Debug)]
 pub struct Proc {

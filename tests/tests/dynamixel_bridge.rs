@@ -8,23 +8,10 @@ use std::time::{Duration, Instant};
 
 use lcm::Lcm;
 use stride_lcmtypes::stride::{DynamixelStateT, JointCommandT, JointStateT, NodeStatusT};
-use stride_tests::{bin, in_sandbox, udpm_url, Proc};
+use stride_tests::{bin, in_sandbox, pty_rig, udpm_url, Proc};
 
 fn chain(dir: &Path, args: &[&str]) -> (Proc, String) {
-    let pty_file = dir.join(format!(
-        "pty-{}",
-        args.join("_").replace(['/', ':', ','], "-")
-    ));
-    let mut c = Command::new(bin("fake-dynamixel-chain"));
-    c.arg("--pty-file").arg(&pty_file).args(args);
-    let p = Proc::spawn(c);
-    let t0 = Instant::now();
-    while !pty_file.exists() && t0.elapsed() < Duration::from_secs(10) {
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    std::thread::sleep(Duration::from_millis(50));
-    let path = std::fs::read_to_string(&pty_file).unwrap();
-    (p, path)
+    pty_rig(dir, "fake-dynamixel-chain", args)
 }
 
 /// The hexapod's configuration with the chain's terminal as its port.

@@ -11,12 +11,12 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use stride_canopen::frame::NodeId;
 use stride_canopen::sdo::{AbortCode, SdoError};
 use stride_canopen_host::{ignore, sdo_read, sdo_write, HostError};
-use stride_tests::{bin, Proc};
+use stride_tests::{pty_rig, wait_pty, Proc};
 
 /// The peers' Python, or `None` (and a note) when they are not installed.
 fn python() -> Option<PathBuf> {
@@ -45,28 +45,6 @@ fn peers_dir() -> PathBuf {
 }
 
 /// Starts a rig binary that writes its pty's path to `--pty-file`; the rig and the path.
-fn rig(dir: &Path, name: &str, args: &[&str]) -> (Proc, String) {
-    let pty_file = dir.join(format!("{name}.pty"));
-    let mut c = Command::new(bin(name));
-    c.arg("--pty-file").arg(&pty_file).args(args);
-    let p = Proc::spawn(c);
-    wait_file(&pty_file);
-    (p, std::fs::read_to_string(&pty_file).unwrap())
-}
-
-fn wait_file(path: &Path) {
-    let t0 = Instant::now();
-    while !path.exists() || std::fs::metadata(path).is_ok_and(|m| m.len() == 0) {
-        assert!(
-            t0.elapsed() < Duration::from_secs(10),
-            "{} never came",
-            path.display()
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    std::thread::sleep(Duration::from_millis(50));
-}
-
 /// Runs a peer script with `args`; its report, which must say every check passed.
 fn script(py: &Path, name: &str, args: &[&str]) -> String {
     let mut c = Command::new(py);
@@ -85,7 +63,7 @@ fn script(py: &Path, name: &str, args: &[&str]) -> String {
 fn python_can_slcan_drives_the_fake_dongle() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let (_rig, pty) = rig(dir.path(), "fake-can-rig", &["--echo", "--nodes", ""]);
+    let (_rig, pty) = pty_rig(dir.path(), "fake-can-rig", &["--echo", "--nodes", ""]);
     let out = script(&py, "slcan_pycan.py", &[&pty]);
     assert!(out.contains("listen-only does not transmit"));
 }
@@ -95,7 +73,7 @@ fn python_canopen_masters_the_fake_elmo_drives() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
     // The drives boot once python-can has opened the dongle, so their boot-up is seen.
-    let (_rig, pty) = rig(
+    let (_rig, pty) = pty_rig(
         dir.path(),
         "fake-can-rig",
         &["--nodes", "1,2", "--drives-after-ms", "1500"],
@@ -108,7 +86,7 @@ fn python_canopen_masters_the_fake_elmo_drives() {
 fn dynamixel_sdk_protocol_1_against_a_fake_ax12a_chain() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let (_rig, pty) = rig(
+    let (_rig, pty) = pty_rig(
         dir.path(),
         "fake-dynamixel-chain",
         &["--model", "AX-12A", "--ids", "1-18"],
@@ -120,7 +98,7 @@ fn dynamixel_sdk_protocol_1_against_a_fake_ax12a_chain() {
 fn dynamixel_sdk_protocol_2_against_a_fake_xm430_chain() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let (_rig, pty) = rig(
+    let (_rig, pty) = pty_rig(
         dir.path(),
         "fake-dynamixel-chain",
         &["--model", "XM430-W350", "--ids", "1-6"],
@@ -146,8 +124,7 @@ fn our_slcan_bus_and_sdo_client_against_python_canopen_local_node() {
         .current_dir(peers_dir())
         .env("PYTHONDONTWRITEBYTECODE", "1");
     let _server = Proc::spawn(c);
-    wait_file(&pty_file);
-    let pty = std::fs::read_to_string(&pty_file).unwrap();
+    let pty = wait_pty(&pty_file);
     // What slcand does: close, bit rate, open.
     let mut bus = stride_canbus::slcan::open_path(&pty, 1_000_000).unwrap();
     let node = NodeId::new(5).unwrap();

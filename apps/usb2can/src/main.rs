@@ -68,6 +68,9 @@ fn open(device: &str, bitrate: u32) -> anyhow::Result<Box<dyn CanBus + Send>> {
     bail!("unknown device {device:?}: use slcan:/dev/ttyACM0 or socketcan:can0")
 }
 
+/// The longest the loop spends on one direction before it turns to the other.
+const SLICE: Duration = Duration::from_millis(1);
+
 /// What the LCM callback and the loop share.
 struct Shared {
     queue: SendQueue,
@@ -123,10 +126,29 @@ fn main() -> anyhow::Result<()> {
         "gateway up"
     );
     while node.running() {
-        node.lcm().handle_timeout(Duration::from_millis(1))?;
-        // LCM to the wire, oldest first; what the interface cannot take yet waits its turn.
+        // Everything LCM has (a bounded number of batches); wait for more only when no frame
+        // is waiting to be sent.
+        let waiting = !shared
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .queue
+            .is_empty();
+        let mut wait = if waiting { Duration::ZERO } else { SLICE };
+        for _ in 0..64 {
+            if !node.lcm().handle_timeout(wait)? {
+                break;
+            }
+            wait = Duration::ZERO;
+        }
+        // LCM to the wire, oldest first, for one slice of time (so the wire's frames and LCM's
+        // new ones are taken in between, and a frame's age counts from when it arrived); what
+        // the interface cannot take yet waits its turn.
+        let slice_end = Instant::now() + SLICE;
         loop {
             let now = Instant::now();
+            if now >= slice_end {
+                break;
+            }
             let mut g = shared.lock().unwrap_or_else(|p| p.into_inner());
             let Shared { queue, stats } = &mut *g;
             let Some(f) = queue.next(now, stats) else {
@@ -153,9 +175,14 @@ fn main() -> anyhow::Result<()> {
                 }
             }
         }
-        // The wire to LCM, batched.
+        // The wire to LCM, batched; while frames wait to be sent, only what has arrived.
         let mut frames = Vec::new();
-        let deadline = Instant::now() + Duration::from_millis(1);
+        let waiting = !shared
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .queue
+            .is_empty();
+        let deadline = Instant::now() + if waiting { Duration::ZERO } else { SLICE };
         loop {
             match bus.recv(deadline) {
                 Ok(f) => {
