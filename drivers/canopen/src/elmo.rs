@@ -264,22 +264,56 @@ impl PvtQueue {
         self.executed = self.written;
     }
 
+    /// The 1-based table index the next row written lands at (the drive's write pointer, as
+    /// its emergencies report it).
+    pub fn write_index(&self) -> u16 {
+        (self.written % self.rows as u64) as u16 + 1
+    }
+
     /// Updates from the drive's read pointer (1-based table index of the next row it will
-    /// execute), as reported in a TPDO or a queue-low emergency.
+    /// execute), as reported in a TPDO or a queue-low emergency. A pointer that would mean
+    /// rows executed that were never written is a report from before the last rows went in
+    /// (the previous motion's last row, a frame in flight): it is ignored, never taken as a
+    /// wrap of the ring.
     pub fn on_read_pointer(&mut self, read: u16) {
         let rows = self.rows as u64;
         let base = self.executed - self.executed % rows;
-        let mut executed = base + (read as u64 - 1) % rows;
+        let mut executed = base + (read.max(1) as u64 - 1) % rows;
         if executed < self.executed {
             executed += rows;
         }
-        self.executed = executed.min(self.written);
+        if executed <= self.written {
+            self.executed = executed;
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_stale_read_pointer_from_the_last_motion_is_not_taken_for_a_wrap() {
+        let mut q = PvtQueue::new(64);
+        for _ in 0..10 {
+            q.push();
+        }
+        // The drive ends the motion on its last row (index 10) and the host drains.
+        q.on_read_pointer(10);
+        assert_eq!(q.pending(), 1);
+        q.drain();
+        for _ in 0..5 {
+            q.push();
+        }
+        // A state sent before the next start still shows the old last row: five rows wait.
+        q.on_read_pointer(10);
+        assert_eq!(q.pending(), 5);
+        assert_eq!(q.room(), 59);
+        // The next motion plays from index 11 on.
+        q.on_read_pointer(13);
+        assert_eq!(q.pending(), 3);
+        assert_eq!(q.write_index(), 16);
+    }
 
     #[test]
     fn manual_examples() {

@@ -132,6 +132,10 @@ pub(crate) struct Axis {
     pub written: u64,
     /// The plan time the motion loaded in the table starts at (its start is not sent yet).
     pub start_at: Option<i64>,
+    /// The drive's write pointer at the end of the last motion, when the master ended it on
+    /// its own clock: the drive's own report of that end may still be on its way, and must
+    /// not end the next motion.
+    pub ended_at: Option<u16>,
     pub last_heartbeat: Option<Instant>,
     pub heartbeat_lost: bool,
     /// Brought up and enabled (a boot-up message then means the drive reset).
@@ -268,6 +272,7 @@ impl Axis {
             lag: 0,
             written: 0,
             start_at: None,
+            ended_at: None,
             last_heartbeat: None,
             heartbeat_lost: false,
             up: false,
@@ -282,6 +287,7 @@ impl Axis {
         self.lag = 0;
         self.written = 0;
         self.start_at = None;
+        self.ended_at = None;
         self.queue = PvtQueue::new(motion.table_rows());
         self.plan.clear()
     }
@@ -318,7 +324,13 @@ impl Track {
                     let ax = &mut self.axes[a];
                     ax.on_state(v[0] as u16, v[1] as u32 as i32, now, period);
                     if ax.playing {
+                        let before = ax.queue.pending();
                         ax.queue.on_read_pointer(v[2] as u16);
+                        if ax.queue.pending() < before {
+                            // The drive plays the new motion: the old one's end was reported
+                            // before this (an EMCY outranks a TPDO on the bus).
+                            ax.ended_at = None;
+                        }
                     }
                 }
             }
@@ -366,11 +378,20 @@ impl Track {
                 ax.queue.on_read_pointer(read);
                 true
             }
+            // The end of a motion the master already ended on its own clock, reported late.
+            Some(ElmoEmcy::MotionTerminated {
+                reason: 1 | 3,
+                write,
+            }) if ax.ended_at == Some(write) => {
+                ax.ended_at = None;
+                true
+            }
             Some(ElmoEmcy::MotionTerminated { reason: 1 | 3, .. }) => {
                 // Every row written has been played: at the plan's end that is the motion's
                 // normal end, before it an underflow.
                 let expected = ax.plan.is_empty() || ax.plan.ended();
                 ax.queue.drain();
+                ax.ended_at = None;
                 ax.playing = false;
                 ax.plan.finish();
                 if let Motion::InterpolatedPosition { .. } = motion {

@@ -376,6 +376,7 @@ impl<B: CanBus> Master<B> {
                 ax.playing = false;
                 ax.lag = 0;
                 ax.written = 0;
+                ax.ended_at = Some(ax.queue.write_index());
                 ax.queue.drain();
                 ax.plan.finish();
             }

@@ -640,3 +640,50 @@ fn faults_become_events_and_recovery_brings_the_drives_back() {
     emergencies(&[], 0);
     r.finish();
 }
+
+#[test]
+fn a_move_sent_as_the_last_one_settles_replaces_its_tail_without_an_underflow() {
+    for motion in [
+        Motion::Pvt,
+        Motion::Pt { period_ms: 10 },
+        Motion::InterpolatedPosition { period_ms: 10 },
+    ] {
+        move_right_after_move(motion);
+    }
+}
+
+/// What scripts/demo does: a move, and the next one as soon as the joints are within 1 mrad
+/// of the target (the first is still in its last rows, its end not yet reported by the
+/// drives when the next one goes in).
+fn move_right_after_move(motion: Motion) {
+    let mut r = Rig::new(3, motion);
+    let names = ["j1", "j2", "j3"];
+    let there = [-0.5, 1.0, -0.5];
+    r.m.load(&minjerk(&names, &[0.0; 3], &there, 1.5), Instant::now())
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while r
+        .positions()
+        .iter()
+        .zip(&there)
+        .any(|(p, q)| (p - q).abs() >= 1e-3)
+    {
+        assert!(Instant::now() < deadline, "the first move did not arrive");
+        r.run(Duration::from_millis(1));
+    }
+    let here = r.positions();
+    let back = minjerk(&names, &here, &[0.0; 3], 1.5);
+    r.m.load(&back, Instant::now()).unwrap();
+    r.play();
+    let events = r.m.take_events();
+    assert!(
+        !events
+            .iter()
+            .any(|e| matches!(e, Event::Underflow { .. } | Event::StreamStopped { .. })),
+        "{motion:?}: {events:?}"
+    );
+    for p in r.positions() {
+        assert!(p.abs() < 1e-3, "{motion:?}: {:?}", r.positions());
+    }
+    r.finish();
+}
