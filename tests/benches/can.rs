@@ -392,20 +392,13 @@ fn main() {
         "| host CPU per 10 ms cycle (mean / p99 / worst) | {:.0} µs / {:.0} µs / {:.0} µs | | |",
         a.cpu_mean_us, a.cpu_p99_us, a.cpu_max_us
     );
-    println!(
-        "| SLCAN host to bus ({} 8-byte frames) | {:.0} frames/s = {:.3} of the bus's {:.0} | ≥ 0.9 | {} |",
-        s.frames,
-        s.to_bus,
-        s.to_bus / s.limit,
-        s.limit,
-        verdict(s.to_bus / s.limit >= 0.9)
-    );
-    println!(
-        "| SLCAN bus to host ({} 8-byte frames) | {:.0} frames/s = {:.3} of the bus's {:.0} | ≥ 0.9 | {} |",
-        s.frames,
-        s.to_host,
-        s.to_host / s.limit,
-        s.limit,
-        verdict(s.to_host / s.limit >= 0.9)
-    );
+    for (way, rate) in [("host to bus", s.to_bus), ("bus to host", s.to_host)] {
+        println!(
+            "| SLCAN {way} ({} 8-byte frames) | {rate:.0} frames/s = {:.3} of the bus's {:.0} | ≥ 0.9 | {} |",
+            s.frames,
+            rate / s.limit,
+            s.limit,
+            verdict(rate / s.limit >= 0.9)
+        );
+    }
 }

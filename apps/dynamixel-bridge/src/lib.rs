@@ -149,16 +149,8 @@ pub fn health<T: Transport>(chain: &Chain<T>, port: &str, header: HeaderT) -> Dy
     }
 }
 
-/// What the bridge logs, each once.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Note {
-    /// An error.
-    Error(String),
-    /// Worth a warning.
-    Warn(String),
-    /// For the record.
-    Info(String),
-}
+/// What the bridge logs, each once, in one line.
+pub use stride_node::Note;
 
 /// The line: up, or lost since and retried when.
 #[derive(Debug, Clone, PartialEq)]

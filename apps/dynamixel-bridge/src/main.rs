@@ -8,7 +8,7 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use clap::Parser;
 use stride_dynamixel::{models, Protocol};
-use stride_dynamixel_bridge::{health, joint_state, Bridge, BridgeConfig, Note};
+use stride_dynamixel_bridge::{health, joint_state, Bridge, BridgeConfig};
 use stride_dynamixel_bus::{Bus, BusConfig};
 use stride_dynamixel_chain::Chain;
 use stride_fakes::dynamixel::{ChainLevers, FakeChain, Servo};
@@ -116,25 +116,6 @@ fn scan(cli: &Cli, cfg: &BridgeConfig, protocol: Protocol) -> anyhow::Result<()>
     Ok(())
 }
 
-/// Writes the bridge's notes, repeats thinned.
-fn log(notes: Vec<Note>, throttle: &mut Throttle) {
-    for n in notes {
-        let (level, text) = match n {
-            Note::Error(m) => (tracing::Level::ERROR, m),
-            Note::Warn(m) => (tracing::Level::WARN, m),
-            Note::Info(m) => (tracing::Level::INFO, m),
-        };
-        let Some(line) = throttle.pass(&text, std::time::Instant::now()) else {
-            continue;
-        };
-        match level {
-            tracing::Level::ERROR => tracing::error!("{line}"),
-            tracing::Level::WARN => tracing::warn!("{line}"),
-            _ => tracing::info!("{line}"),
-        }
-    }
-}
-
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     let cfg: BridgeConfig = load_config(cli.node.config.as_deref())?;
@@ -166,12 +147,12 @@ fn main() -> anyhow::Result<()> {
     let mut ticker = Ticker::new(cfg.rate_hz);
     while let Some(now) = ticker.wait(&node)? {
         while let Ok(m) = rx.try_recv() {
-            log(bridge.on_command(&m, now), &mut throttle);
+            throttle.log(bridge.on_command(&m, now));
         }
         let reopen = || -> std::io::Result<Box<dyn Transport>> {
             Ok(Box::new(stride_serial::open(&cfg.port, cfg.baud)?))
         };
-        log(bridge.tick(now, reopen), &mut throttle);
+        throttle.log(bridge.tick(now, reopen));
         let (state, detail) = bridge.health();
         node.set_health(state, detail);
         if !bridge.up() {

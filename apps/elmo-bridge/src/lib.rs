@@ -273,16 +273,8 @@ pub struct Health {
     pub detail: String,
 }
 
-/// What the bridge logs, each once: a warning or an error, in one line.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Note {
-    /// Worth a warning.
-    Warn(String),
-    /// An error.
-    Error(String),
-    /// For the record.
-    Info(String),
-}
+/// What the bridge logs, each once, in one line.
+pub use stride_node::Note;
 
 /// How the bridge comes back from a stop, as its status says.
 pub const REARM: &str =
@@ -396,12 +388,26 @@ impl<B: CanBus> Bridge<B> {
     }
 
     /// Stops every axis for `why` (the drives stay stopped until the next valid trajectory).
-    fn stop(&mut self, why: String, state: i8, notes: &mut Vec<Note>) {
+    fn stop(&mut self, why: String, notes: &mut Vec<Note>) {
         for e in self.master.quick_stop(&why) {
             notes.push(Note::Error(format!("quick stop: {e}")));
         }
         notes.push(Note::Error(format!("{why}: every axis quick-stopped")));
-        self.set(state, format!("{why}: quick-stopped; {REARM}"));
+        self.set(
+            NodeStatusT::STATE_FAULT,
+            format!("{why}: quick-stopped; {REARM}"),
+        );
+    }
+
+    /// The bus or a drive is down for `why`: recovery runs, first after its delay; `when`
+    /// says what it waits for.
+    fn go_down(&mut self, why: String, when: &str, now: Instant) {
+        self.recovery.failed(now);
+        self.set(
+            NodeStatusT::STATE_FAULT,
+            format!("{why}; bringing the drives up again{when}"),
+        );
+        self.down = Some(why);
     }
 
     /// One cycle: recovery when due, the master's pump, and what its events mean.
@@ -433,25 +439,19 @@ impl<B: CanBus> Bridge<B> {
         if let Err(e) = self.master.pump(now) {
             // Bus-off or a dead interface: the drives stop on their own without the
             // bridge's heartbeat; they are brought up again once the bus answers.
-            let why = format!("CAN: {e}");
             notes.push(Note::Error(format!("CAN cycle failed: {e}")));
-            self.down = Some(why.clone());
-            self.recovery.failed(now);
-            self.set(
-                NodeStatusT::STATE_FAULT,
-                format!("{why}; bringing the drives up again when the bus answers"),
-            );
+            self.go_down(format!("CAN: {e}"), " when the bus answers", now);
             return notes;
         }
         for e in self.master.take_events() {
             match e {
                 Event::Emergency { joint, text, emcy } => {
                     let why = format!("{joint}: emergency {:#06x} ({text})", emcy.code);
-                    self.stop(why, NodeStatusT::STATE_FAULT, &mut notes);
+                    self.stop(why, &mut notes);
                 }
                 Event::Underflow { joint } => {
                     let why = format!("{joint} ran out of rows while moving");
-                    self.stop(why, NodeStatusT::STATE_FAULT, &mut notes);
+                    self.stop(why, &mut notes);
                 }
                 Event::InterpreterError {
                     joint,
@@ -459,27 +459,17 @@ impl<B: CanBus> Bridge<B> {
                     code,
                 } => {
                     let why = format!("{joint}: the drive refused {command} (error {code})");
-                    self.stop(why, NodeStatusT::STATE_FAULT, &mut notes);
+                    self.stop(why, &mut notes);
                 }
                 Event::HeartbeatLost { joint } => {
                     let why = format!("{joint}: heartbeat lost");
-                    self.stop(why.clone(), NodeStatusT::STATE_FAULT, &mut notes);
-                    self.down = Some(why.clone());
-                    self.recovery.failed(now);
-                    self.set(
-                        NodeStatusT::STATE_FAULT,
-                        format!("{why}; bringing the drives up again when it answers"),
-                    );
+                    self.stop(why.clone(), &mut notes);
+                    self.go_down(why, " when it answers", now);
                 }
                 Event::Rebooted { joint } => {
                     let why = format!("{joint}: drive reset");
-                    self.stop(why.clone(), NodeStatusT::STATE_FAULT, &mut notes);
-                    self.down = Some(why.clone());
-                    self.recovery.failed(now);
-                    self.set(
-                        NodeStatusT::STATE_FAULT,
-                        format!("{why}; bringing the drives up again"),
-                    );
+                    self.stop(why.clone(), &mut notes);
+                    self.go_down(why, "", now);
                 }
                 Event::StreamStopped { joints } => {
                     let why = format!(

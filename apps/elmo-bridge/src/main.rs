@@ -9,7 +9,7 @@ use anyhow::{bail, Context};
 use clap::Parser;
 use stride_canbus::{CanBus, MemBus};
 use stride_elmo::Master;
-use stride_elmo_bridge::{Bridge, BridgeConfig, Note};
+use stride_elmo_bridge::{Bridge, BridgeConfig};
 use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
 use stride_lcmtypes::stride::{JointTrajectoryT, NodeStatusT};
 use stride_node::{load_config, Node, NodeArgs, Stamper, Throttle};
@@ -87,25 +87,6 @@ fn open_bus<'a>(
     )
 }
 
-/// Writes the bridge's notes, repeats thinned.
-fn log(notes: Vec<Note>, throttle: &mut Throttle) {
-    for n in notes {
-        let (level, text) = match n {
-            Note::Error(m) => (tracing::Level::ERROR, m),
-            Note::Warn(m) => (tracing::Level::WARN, m),
-            Note::Info(m) => (tracing::Level::INFO, m),
-        };
-        let Some(line) = throttle.pass(&text, std::time::Instant::now()) else {
-            continue;
-        };
-        match level {
-            tracing::Level::ERROR => tracing::error!("{line}"),
-            tracing::Level::WARN => tracing::warn!("{line}"),
-            _ => tracing::info!("{line}"),
-        }
-    }
-}
-
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     let cfg: BridgeConfig = load_config(cli.node.config.as_deref())?;
@@ -141,9 +122,9 @@ fn main() -> anyhow::Result<()> {
         }
         let now = Instant::now();
         while let Ok(m) = rx.try_recv() {
-            log(bridge.on_trajectory(&m, now), &mut throttle);
+            throttle.log(bridge.on_trajectory(&m, now));
         }
-        log(bridge.tick(now), &mut throttle);
+        throttle.log(bridge.tick(now));
         let h = bridge.health().clone();
         node.set_health(h.state, h.detail);
         if now >= next_state {

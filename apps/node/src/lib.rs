@@ -30,7 +30,7 @@ mod throttle;
 
 pub use config::load_config;
 pub use stamp::Stamper;
-pub use throttle::Throttle;
+pub use throttle::{Note, Throttle};
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -3,6 +3,17 @@
 
 use std::time::{Duration, Instant};
 
+/// A line an app's library asks its executable to log.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Note {
+    /// An error.
+    Error(String),
+    /// Worth a warning.
+    Warn(String),
+    /// For the record.
+    Info(String),
+}
+
 /// Which lines of a run of repeats to write.
 #[derive(Debug, Clone)]
 pub struct Throttle {
@@ -18,6 +29,25 @@ impl Throttle {
             every,
             last: None,
             held: 0,
+        }
+    }
+
+    /// Logs `notes` at their levels through `tracing`, repeats thinned.
+    pub fn log(&mut self, notes: impl IntoIterator<Item = Note>) {
+        for n in notes {
+            let (level, text) = match n {
+                Note::Error(m) => (tracing::Level::ERROR, m),
+                Note::Warn(m) => (tracing::Level::WARN, m),
+                Note::Info(m) => (tracing::Level::INFO, m),
+            };
+            let Some(line) = self.pass(&text, Instant::now()) else {
+                continue;
+            };
+            match level {
+                tracing::Level::ERROR => tracing::error!("{line}"),
+                tracing::Level::WARN => tracing::warn!("{line}"),
+                _ => tracing::info!("{line}"),
+            }
         }
     }
 

@@ -479,44 +479,40 @@ impl FakeChain {
 
     /// A servo's answer to a packet with a bad checksum (1.0) or CRC (2.0) addressed to it.
     fn bad_checksum(&mut self, id: u8) -> Option<(Duration, Vec<u8>)> {
-        if id == BROADCAST {
-            return None;
-        }
-        let delay = self.delay(id);
-        let fault = self.levers.get(id);
-        let s = self.servo(id)?;
-        s.transient |= ErrorBits::CHECKSUM;
-        let status = Status {
-            id,
-            error: s.error_byte(&fault, 3),
-            params: Vec::new(),
-        };
-        Some((delay, self.encode(&status)))
+        self.error_status(id, ErrorBits::CHECKSUM, 3)
     }
 
     /// A servo's answer to an instruction it does not know, or whose parameters do not fit
     /// it (2.0: instruction error 2, data length error 5; 1.0: the instruction bit).
     fn bad_instruction(&mut self, packet: &[u8]) -> Option<(Duration, Vec<u8>)> {
-        let (id, unknown) = match self.protocol {
+        let ((id, code), err) = match self.protocol {
             Protocol::V1 => {
                 let (id, code, _) = v1::unframe(packet).ok()?;
-                (id, v1::decode_instruction(packet).err().is_some_and(|e| matches!(e, stride_dynamixel::CodecError::UnknownInstruction(c) if c == code)))
+                ((id, code), v1::decode_instruction(packet).err())
             }
             Protocol::V2 => {
                 let (id, code, _) = v2::unframe(packet).ok()?;
-                (id, v2::decode_instruction(packet).err().is_some_and(|e| matches!(e, stride_dynamixel::CodecError::UnknownInstruction(c) if c == code)))
+                ((id, code), v2::decode_instruction(packet).err())
             }
         };
+        let unknown =
+            matches!(err, Some(stride_dynamixel::CodecError::UnknownInstruction(c)) if c == code);
+        self.error_status(id, ErrorBits::INSTRUCTION, if unknown { 2 } else { 5 })
+    }
+
+    /// Servo `id`'s status with no parameters for a packet it refused: `bit` in its error
+    /// (1.0), error number `v2_error` (2.0); none for the broadcast id.
+    fn error_status(&mut self, id: u8, bit: u8, v2_error: u8) -> Option<(Duration, Vec<u8>)> {
         if id == BROADCAST {
             return None;
         }
         let delay = self.delay(id);
         let fault = self.levers.get(id);
         let s = self.servo(id)?;
-        s.transient |= ErrorBits::INSTRUCTION;
+        s.transient |= bit;
         let status = Status {
             id,
-            error: s.error_byte(&fault, if unknown { 2 } else { 5 }),
+            error: s.error_byte(&fault, v2_error),
             params: Vec::new(),
         };
         Some((delay, self.encode(&status)))
