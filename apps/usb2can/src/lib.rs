@@ -6,7 +6,9 @@ use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 use stride_can::CanFrame;
-use stride_lcmtypes::stride::{CanBusStatusT, HeaderT};
+use stride_can_lcm::{msg_to_frame, BadFrame};
+use stride_canbus::{BusError, CanBus};
+use stride_lcmtypes::stride::{CanBusStatusT, CanFrameT, HeaderT};
 
 /// Counters of the gateway since start.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -21,9 +23,10 @@ pub struct GatewayStats {
     pub dropped_stale: u64,
     /// Frame elements from LCM that are no frame.
     pub invalid: u64,
-    /// Frames the interface failed to send for good.
+    /// Frames the interface failed to send, or did not confirm in time; none is sent again
+    /// (a frame the interface may have sent must not go twice).
     pub send_errors: u64,
-    /// Times the interface reported bus-off.
+    /// Times the interface went bus-off.
     pub bus_off: u64,
 }
 
@@ -44,9 +47,9 @@ impl GatewayStats {
         )
     }
 
-    /// Frames dropped for any reason.
+    /// Frames from LCM dropped before the wire: queue full, too old, or no frame.
     pub fn dropped(&self) -> u64 {
-        self.dropped_queue_full + self.dropped_stale + self.invalid + self.send_errors
+        self.dropped_queue_full + self.dropped_stale + self.invalid
     }
 }
 
@@ -119,6 +122,144 @@ impl SendQueue {
     }
 }
 
+/// How a turn of sending ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TurnEnd {
+    /// Nothing is left to send.
+    Drained,
+    /// The turn's time ran out with frames waiting: come back at once.
+    Slice,
+    /// The interface takes nothing now (its queue is full, or bus-off): come back later.
+    Blocked,
+}
+
+/// What a turn of sending did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Turn {
+    /// How it ended.
+    pub end: TurnEnd,
+    /// The frames that went out, in order.
+    pub sent: Vec<CanFrame>,
+    /// Frames that failed (not sent again), with why.
+    pub failed: Vec<(CanFrame, BusError)>,
+    /// The interface went bus-off in this turn (it was not before).
+    pub bus_off: bool,
+}
+
+/// The LCM-to-wire side of the gateway: the send queue, the counters, and whether the
+/// interface is bus-off.
+#[derive(Debug, Clone)]
+pub struct Gateway {
+    /// Frames waiting for the wire.
+    pub queue: SendQueue,
+    /// The counters.
+    pub stats: GatewayStats,
+    bus_off: bool,
+}
+
+impl Gateway {
+    /// A gateway with an empty queue.
+    pub fn new(queue: SendQueue) -> Gateway {
+        Gateway {
+            queue,
+            stats: GatewayStats::default(),
+            bus_off: false,
+        }
+    }
+
+    /// Takes a batch's frames from LCM that arrived at `arrived`: each queued, or counted as
+    /// refused; returns why each refused element is no frame.
+    pub fn take(&mut self, frames: &[CanFrameT], arrived: Instant) -> Vec<BadFrame> {
+        let mut bad = Vec::new();
+        for e in frames {
+            match msg_to_frame(e) {
+                Ok(f) => {
+                    self.queue.push(f, arrived, &mut self.stats);
+                }
+                Err(why) => {
+                    self.stats.invalid += 1;
+                    bad.push(why);
+                }
+            }
+        }
+        bad
+    }
+
+    /// Sends waiting frames, oldest first, until `until`, the queue is empty, or the
+    /// interface takes no more. A frame the interface refuses (its queue full, bus-off)
+    /// waits for the next turn; one it fails or does not confirm is counted and dropped.
+    pub fn send(&mut self, bus: &mut (impl CanBus + ?Sized), until: Instant) -> Turn {
+        let mut turn = Turn {
+            end: TurnEnd::Drained,
+            sent: Vec::new(),
+            failed: Vec::new(),
+            bus_off: false,
+        };
+        loop {
+            let now = Instant::now();
+            let Some(f) = self.queue.next(now, &mut self.stats) else {
+                turn.end = TurnEnd::Drained;
+                return turn;
+            };
+            if now >= until {
+                turn.end = TurnEnd::Slice;
+                return turn;
+            }
+            match bus.send(&f, now + Duration::from_millis(5)) {
+                Ok(()) => {
+                    self.stats.to_wire += 1;
+                    self.queue.sent();
+                    self.bus_off = false;
+                    turn.sent.push(f);
+                }
+                Err(BusError::TxQueueFull) => {
+                    turn.end = TurnEnd::Blocked;
+                    return turn;
+                }
+                Err(BusError::BusOff) => {
+                    turn.bus_off = self.on_bus_off();
+                    turn.end = TurnEnd::Blocked;
+                    return turn;
+                }
+                Err(e) => {
+                    self.stats.send_errors += 1;
+                    self.queue.sent();
+                    turn.failed.push((f, e));
+                }
+            }
+        }
+    }
+
+    /// The interface reported bus-off; true when it was not before (counted once per
+    /// episode).
+    pub fn on_bus_off(&mut self) -> bool {
+        let new = !self.bus_off;
+        if new {
+            self.stats.bus_off += 1;
+        }
+        self.bus_off = true;
+        new
+    }
+
+    /// A frame came from the wire: the bus is up.
+    pub fn on_received(&mut self, frames: usize) {
+        self.stats.from_wire += frames as u64;
+        if frames > 0 {
+            self.bus_off = false;
+        }
+    }
+
+    /// True while the interface is bus-off.
+    pub fn is_bus_off(&self) -> bool {
+        self.bus_off
+    }
+
+    /// The gateway's status message.
+    pub fn status(&self, header: HeaderT, bus: &str, device: &str) -> CanBusStatusT {
+        status_msg(header, bus, device, &self.stats, &self.queue)
+    }
+}
+
 /// The gateway's status message.
 pub fn status_msg(
     header: HeaderT,
@@ -152,6 +293,85 @@ pub fn status_channel(name: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use stride_canbus::MemBus;
+
+    /// A bus that fails every send with `e`.
+    struct Failing(BusError);
+
+    impl CanBus for Failing {
+        fn send(&mut self, _: &CanFrame, _: Instant) -> Result<(), BusError> {
+            Err(self.0.clone())
+        }
+        fn recv(&mut self, _: Instant) -> Result<CanFrame, BusError> {
+            Err(BusError::Timeout)
+        }
+    }
+
+    fn gateway(frames: u16) -> Gateway {
+        let mut g = Gateway::new(SendQueue::new(100, Duration::from_secs(10)));
+        for i in 0..frames {
+            g.queue.push(frame(i), Instant::now(), &mut g.stats);
+        }
+        g
+    }
+
+    #[test]
+    fn a_send_the_interface_did_not_confirm_is_not_sent_again() {
+        let mut g = gateway(3);
+        let later = Instant::now() + Duration::from_secs(1);
+        let t = g.send(&mut Failing(BusError::Timeout), later);
+        assert_eq!(t.end, TurnEnd::Drained);
+        assert_eq!(t.failed.len(), 3);
+        assert_eq!(
+            (g.stats.send_errors, g.stats.to_wire, g.queue.len()),
+            (3, 0, 0)
+        );
+    }
+
+    #[test]
+    fn bus_off_is_counted_once_and_the_frames_wait() {
+        let mut g = gateway(3);
+        let later = Instant::now() + Duration::from_secs(1);
+        for i in 0..5 {
+            let t = g.send(&mut Failing(BusError::BusOff), later);
+            assert_eq!((t.end, t.bus_off), (TurnEnd::Blocked, i == 0));
+        }
+        assert_eq!((g.stats.bus_off, g.queue.len()), (1, 3));
+        assert!(g.is_bus_off());
+        // Frames from the wire again: the bus is back; a second bus-off is a second episode.
+        g.on_received(1);
+        assert!(!g.is_bus_off());
+        assert!(g.on_bus_off());
+        assert_eq!(g.stats.bus_off, 2);
+        // A full interface queue is no error: the frame waits its turn.
+        let t = g.send(&mut Failing(BusError::TxQueueFull), later);
+        assert_eq!(
+            (t.end, g.queue.len(), g.stats.send_errors),
+            (TurnEnd::Blocked, 3, 0)
+        );
+    }
+
+    #[test]
+    fn a_turn_sends_in_order_and_ends_with_its_slice() {
+        let bus = MemBus::new(1_000_000);
+        let (mut a, mut b) = (bus.node(), bus.node());
+        let mut g = gateway(3);
+        let t = g.send(&mut a, Instant::now());
+        assert_eq!((t.end, t.sent.len()), (TurnEnd::Slice, 0));
+        let t = g.send(&mut a, Instant::now() + Duration::from_secs(1));
+        assert_eq!(t.end, TurnEnd::Drained);
+        assert_eq!(t.sent, [frame(0), frame(1), frame(2)]);
+        let got: Vec<_> = (0..3)
+            .map(|_| b.recv(Instant::now() + Duration::from_secs(1)).unwrap())
+            .collect();
+        assert_eq!(got, t.sent);
+        // A batch with a bad element: the good ones queued, the bad one counted.
+        let mut bad = stride_can_lcm::frame_to_msg(&frame(7), 0);
+        bad.dlc = 9;
+        let good = stride_can_lcm::frame_to_msg(&frame(8), 0);
+        assert_eq!(g.take(&[good, bad], Instant::now()).len(), 1);
+        assert_eq!((g.queue.len(), g.stats.invalid), (1, 1));
+    }
 
     fn frame(i: u16) -> CanFrame {
         CanFrame::standard(0x600 + i, &[i as u8]).unwrap()

@@ -7,12 +7,12 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use clap::Parser;
-use stride_can::dump;
-use stride_can_lcm::{batch, frame_to_msg, msg_to_frame, now_us, rx_channel, tx_channel};
+use stride_can::{dump, CanFrame};
+use stride_can_lcm::{batch, frame_to_msg, now_us, rx_channel, tx_channel};
 use stride_canbus::{BusError, CanBus};
 use stride_lcmtypes::stride::{CanFrameBatchT, NodeStatusT};
-use stride_node::{Node, NodeArgs, Stamper};
-use stride_usb2can::{status_channel, status_msg, GatewayStats, SendQueue};
+use stride_node::{Node, NodeArgs, Note, Stamper, Throttle};
+use stride_usb2can::{status_channel, Gateway, GatewayStats, SendQueue, TurnEnd};
 
 /// Put a CAN interface on the LCM bus, both directions.
 ///
@@ -71,10 +71,8 @@ fn open(device: &str, bitrate: u32) -> anyhow::Result<Box<dyn CanBus + Send>> {
 /// The longest the loop spends on one direction before it turns to the other.
 const SLICE: Duration = Duration::from_millis(1);
 
-/// What the LCM callback and the loop share.
-struct Shared {
-    queue: SendQueue,
-    stats: GatewayStats,
+fn lock(g: &Mutex<Gateway>) -> std::sync::MutexGuard<'_, Gateway> {
+    g.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 fn main() -> anyhow::Result<()> {
@@ -87,108 +85,76 @@ fn main() -> anyhow::Result<()> {
         )),
         None => None,
     };
-    let shared = Arc::new(Mutex::new(Shared {
-        queue: SendQueue::new(cli.queue, Duration::from_millis(cli.max_age_ms)),
-        stats: GatewayStats::default(),
-    }));
-    let s = shared.clone();
-    let sub = node
-        .lcm()
-        .subscribe(&tx_channel(&cli.bus_name), move |_, m: CanFrameBatchT| {
-            let now = Instant::now();
-            let mut g = s.lock().unwrap_or_else(|p| p.into_inner());
-            let Shared { queue, stats } = &mut *g;
-            for e in &m.frames {
-                match msg_to_frame(e) {
-                    Ok(f) => {
-                        queue.push(f, now, stats);
-                    }
-                    Err(why) => {
-                        stats.invalid += 1;
-                        tracing::warn!(invalid = stats.invalid, "frame refused: {why}");
-                    }
-                }
-            }
-        })?;
-    // Batches wait in liblcm's queue between turns of the loop.
+    let gateway = Arc::new(Mutex::new(Gateway::new(SendQueue::new(
+        cli.queue,
+        Duration::from_millis(cli.max_age_ms),
+    ))));
+    let g = gateway.clone();
+    let mut refused_log = Throttle::new(Duration::from_secs(1));
+    let sub = node.lcm().subscribe(
+        &tx_channel(&cli.bus_name),
+        move |info: &lcm::RecvInfo<'_>, m: CanFrameBatchT| {
+            // A frame's age counts from when liblcm received its batch.
+            let waited =
+                Duration::from_micros(now_us().saturating_sub(info.recv_utime).max(0) as u64);
+            let arrived = Instant::now()
+                .checked_sub(waited)
+                .unwrap_or_else(Instant::now);
+            let bad = lock(&g).take(&m.frames, arrived);
+            refused_log.log(
+                bad.iter()
+                    .map(|why| Note::Warn(format!("frame refused: {why}"))),
+            );
+        },
+    )?;
+    // Batches wait in liblcm's queue between turns of the loop (beyond it they are lost, and
+    // counted in the node's status).
     sub.set_queue_capacity(1000)?;
     let rx_chan = rx_channel(&cli.bus_name);
     let status_chan = status_channel(&cli.bus_name);
     let publisher = node.publisher();
     let mut stamper = Stamper::new("");
     let mut status_stamper = Stamper::new("");
+    let mut send_log = Throttle::new(Duration::from_secs(1));
     let mut last_stats = (Instant::now(), GatewayStats::default());
     let mut last_status = Instant::now() - Duration::from_secs(1);
+    let mut log_frame = |f: &CanFrame| {
+        if let Some(d) = dump.as_mut() {
+            let _ = writeln!(d, "{}", dump::format(now_us(), &cli.bus_name, f));
+        }
+    };
     node.set_running();
     tracing::info!(
         device = cli.device.as_str(),
         rx = rx_chan.as_str(),
         "gateway up"
     );
+    // True while frames wait that the interface would take now: then nothing waits for more.
+    let mut hurry = false;
     while node.running() {
-        // Everything LCM has (a bounded number of batches); wait for more only when no frame
-        // is waiting to be sent.
-        let waiting = !shared
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .queue
-            .is_empty();
-        let mut wait = if waiting { Duration::ZERO } else { SLICE };
-        for _ in 0..64 {
-            if !node.lcm().handle_timeout(wait)? {
-                break;
-            }
-            wait = Duration::ZERO;
+        // LCM to the queue: everything liblcm has; wait for more only when not in a hurry.
+        if hurry || node.lcm().handle_timeout(SLICE)? {
+            node.lcm().handle_pending()?;
         }
-        // LCM to the wire, oldest first, for one slice of time (so the wire's frames and LCM's
-        // new ones are taken in between, and a frame's age counts from when it arrived); what
-        // the interface cannot take yet waits its turn.
-        let slice_end = Instant::now() + SLICE;
-        loop {
-            let now = Instant::now();
-            if now >= slice_end {
-                break;
-            }
-            let mut g = shared.lock().unwrap_or_else(|p| p.into_inner());
-            let Shared { queue, stats } = &mut *g;
-            let Some(f) = queue.next(now, stats) else {
-                break;
-            };
-            match bus.send(&f, now + Duration::from_millis(5)) {
-                Ok(()) => {
-                    stats.to_wire += 1;
-                    queue.sent();
-                    if let Some(d) = dump.as_mut() {
-                        let _ = writeln!(d, "{}", dump::format(now_us(), &cli.bus_name, &f));
-                    }
-                }
-                Err(BusError::TxQueueFull | BusError::Timeout) => break,
-                Err(BusError::BusOff) => {
-                    stats.bus_off += 1;
-                    node.set_health(NodeStatusT::STATE_FAULT, "bus off");
-                    break;
-                }
-                Err(e) => {
-                    stats.send_errors += 1;
-                    queue.sent();
-                    tracing::warn!(error = %e, "frame not sent");
-                }
-            }
+        // The queue to the wire, for one slice of time, so that the wire's frames and LCM's
+        // new ones are taken in between.
+        let was_off = lock(&gateway).is_bus_off();
+        let turn = lock(&gateway).send(&mut *bus, Instant::now() + SLICE);
+        turn.sent.iter().for_each(&mut log_frame);
+        for (_, e) in &turn.failed {
+            send_log.log([Note::Warn(format!("frame not sent: {e}"))]);
         }
-        // The wire to LCM, batched; while frames wait to be sent, only what has arrived.
+        if turn.bus_off {
+            node.set_health(NodeStatusT::STATE_FAULT, "bus off");
+        }
+        hurry = turn.end == TurnEnd::Slice;
+        // The wire to LCM, batched; in a hurry, only what has arrived.
         let mut frames = Vec::new();
-        let waiting = !shared
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .queue
-            .is_empty();
-        let deadline = Instant::now() + if waiting { Duration::ZERO } else { SLICE };
+        let deadline = Instant::now() + if hurry { Duration::ZERO } else { SLICE };
         loop {
             match bus.recv(deadline) {
                 Ok(f) => {
-                    if let Some(d) = dump.as_mut() {
-                        let _ = writeln!(d, "{}", dump::format(now_us(), &cli.bus_name, &f));
-                    }
+                    log_frame(&f);
                     frames.push(frame_to_msg(&f, now_us()));
                     if frames.len() >= stride_can_lcm::BATCH {
                         break;
@@ -196,51 +162,39 @@ fn main() -> anyhow::Result<()> {
                 }
                 Err(BusError::Timeout) => break,
                 Err(BusError::BusOff) => {
-                    shared
-                        .lock()
-                        .unwrap_or_else(|p| p.into_inner())
-                        .stats
-                        .bus_off += 1;
-                    node.set_health(NodeStatusT::STATE_FAULT, "bus off");
+                    if lock(&gateway).on_bus_off() {
+                        node.set_health(NodeStatusT::STATE_FAULT, "bus off");
+                    }
                     break;
                 }
                 Err(e) => return Err(e).context("reading the interface"),
             }
         }
+        let mut g = lock(&gateway);
+        g.on_received(frames.len());
+        if was_off && !g.is_bus_off() {
+            node.set_health(NodeStatusT::STATE_RUNNING, "");
+        }
         if !frames.is_empty() {
-            shared
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .stats
-                .from_wire += frames.len() as u64;
             publisher.publish(&rx_chan, &batch(&cli.bus_name, stamper.stamp(), &frames))?;
         }
         if last_status.elapsed() >= Duration::from_secs(1) {
             last_status = Instant::now();
-            let g = shared.lock().unwrap_or_else(|p| p.into_inner());
-            let msg = status_msg(
-                status_stamper.stamp(),
-                &cli.bus_name,
-                &cli.device,
-                &g.stats,
-                &g.queue,
-            );
-            drop(g);
+            let msg = g.status(status_stamper.stamp(), &cli.bus_name, &cli.device);
             if let Err(e) = publisher.publish(&status_chan, &msg) {
                 tracing::warn!(error = %e, "could not publish the bus status");
             }
         }
         let elapsed = last_stats.0.elapsed().as_secs_f64();
         if elapsed >= cli.stats_every {
-            let s = shared.lock().unwrap_or_else(|p| p.into_inner()).stats;
-            tracing::info!("{}", s.summary(&last_stats.1, elapsed));
-            last_stats = (Instant::now(), s);
+            tracing::info!("{}", g.stats.summary(&last_stats.1, elapsed));
+            last_stats = (Instant::now(), g.stats);
         }
     }
     if let Some(mut d) = dump {
         let _ = d.flush();
     }
-    let s = shared.lock().unwrap_or_else(|p| p.into_inner()).stats;
+    let s = lock(&gateway).stats;
     println!(
         "stride-usb2can: {} frames from the wire, {} to the wire, {} dropped ({} queue full, {} stale, {} invalid), {} send errors, {} bus-off",
         s.from_wire,

@@ -32,13 +32,27 @@ pub fn parse(line: &str) -> Option<(i64, String, CanFrame)> {
     let mut parts = line.split_whitespace();
     let stamp = parts.next()?.strip_prefix('(')?.strip_suffix(')')?;
     let (secs, micros) = stamp.split_once('.')?;
-    if micros.len() != 6 {
+    let digits = |s: &str, hex: bool| {
+        !s.is_empty()
+            && s.bytes().all(|b| {
+                if hex {
+                    b.is_ascii_hexdigit()
+                } else {
+                    b.is_ascii_digit()
+                }
+            })
+    };
+    if micros.len() != 6 || !digits(secs, false) || !digits(micros, false) {
         return None;
     }
-    let utime = secs.parse::<i64>().ok()? * 1_000_000 + micros.parse::<i64>().ok()?;
+    let utime = secs
+        .parse::<i64>()
+        .ok()?
+        .checked_mul(1_000_000)?
+        .checked_add(micros.parse::<i64>().ok()?)?;
     let iface = parts.next()?.to_owned();
     let (id, data) = parts.next()?.split_once('#')?;
-    if parts.next().is_some() {
+    if parts.next().is_some() || !digits(id, true) {
         return None;
     }
     let raw = u32::from_str_radix(id, 16).ok()?;
@@ -51,7 +65,7 @@ pub fn parse(line: &str) -> Option<(i64, String, CanFrame)> {
         let dlc = if len.is_empty() { 0 } else { len.parse().ok()? };
         CanFrame::remote(id, dlc).ok()?
     } else {
-        if data.len() % 2 != 0 || !data.is_ascii() {
+        if data.len() % 2 != 0 || !(data.is_empty() || digits(data, true)) {
             return None;
         }
         let bytes: Option<Vec<u8>> = (0..data.len() / 2)
@@ -89,6 +103,40 @@ mod tests {
             "(1.000000) can0 601#0",
         ] {
             assert_eq!(parse(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_bad_line_is_refused_never_a_panic() {
+        for bad in [
+            "(99999999999999999.000000) can0 601#00",
+            "(+1.000000) can0 601#00",
+            "(1.+00000) can0 601#00",
+            "(1.000000) can0 +01#00",
+            "(1.000000) can0 601#+1",
+            "(1.000000) can0 601#-1",
+            "(1.000000) can0 601#é0",
+        ] {
+            assert_eq!(parse(bad), None, "{bad}");
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn any_line_parses_or_is_refused(line in "\\PC{0,60}") {
+            let _ = parse(&line);
+        }
+
+        #[test]
+        fn a_written_line_reads_back(
+            secs in 0i64..4_000_000_000,
+            micros in 0i64..1_000_000,
+            id in 0u16..0x800,
+            data in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..=8),
+        ) {
+            let f = CanFrame::standard(id, &data).unwrap();
+            let t = secs * 1_000_000 + micros;
+            proptest::prop_assert_eq!(parse(&format(t, "can0", &f)), Some((t, "can0".into(), f)));
         }
     }
 }
