@@ -247,6 +247,11 @@ impl Recovery {
         self.next.is_some()
     }
 
+    /// When the next attempt is due (`None`: nothing to recover).
+    pub fn next(&self) -> Option<Instant> {
+        self.next
+    }
+
     /// True when an attempt is due now.
     pub fn due(&self, now: Instant) -> bool {
         self.next.is_some_and(|t| now >= t)
@@ -264,17 +269,8 @@ impl Recovery {
     }
 }
 
-/// The node's health: one of `NodeStatusT::STATE_*` and why.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Health {
-    /// The state.
-    pub state: i8,
-    /// Why, in words.
-    pub detail: String,
-}
-
-/// What the bridge logs, each once, in one line.
-pub use stride_node::Note;
+/// What the bridge logs, each once, in one line; and the node's health it keeps.
+pub use stride_node::{Health, Note};
 
 /// How the bridge comes back from a stop, as its status says.
 pub const REARM: &str =
@@ -331,7 +327,10 @@ impl<B: CanBus> Bridge<B> {
 
     /// When the bridge next has something to do.
     pub fn next_wake(&self) -> Instant {
-        self.master.next_wake()
+        // While the drives are down the master is not pumped: the next attempt is what comes.
+        self.recovery
+            .next()
+            .unwrap_or_else(|| self.master.next_wake())
     }
 
     fn set(&mut self, state: i8, detail: String) {
@@ -399,10 +398,11 @@ impl<B: CanBus> Bridge<B> {
         );
     }
 
-    /// The bus or a drive is down for `why`: recovery runs, first after its delay; `when`
-    /// says what it waits for.
-    fn go_down(&mut self, why: String, when: &str, now: Instant) {
-        self.recovery.failed(now);
+    /// The bus or a drive is down for `why`: recovery runs, first after its delay from now
+    /// (after the stop, which may have waited on silent drives); `when` says what it waits
+    /// for.
+    fn go_down(&mut self, why: String, when: &str) {
+        self.recovery.failed(Instant::now());
         self.set(
             NodeStatusT::STATE_FAULT,
             format!("{why}; bringing the drives up again{when}"),
@@ -440,7 +440,7 @@ impl<B: CanBus> Bridge<B> {
             // Bus-off or a dead interface: the drives stop on their own without the
             // bridge's heartbeat; they are brought up again once the bus answers.
             notes.push(Note::Error(format!("CAN cycle failed: {e}")));
-            self.go_down(format!("CAN: {e}"), " when the bus answers", now);
+            self.go_down(format!("CAN: {e}"), " when the bus answers");
             return notes;
         }
         for e in self.master.take_events() {
@@ -464,12 +464,12 @@ impl<B: CanBus> Bridge<B> {
                 Event::HeartbeatLost { joint } => {
                     let why = format!("{joint}: heartbeat lost");
                     self.stop(why.clone(), &mut notes);
-                    self.go_down(why, " when it answers", now);
+                    self.go_down(why, " when it answers");
                 }
                 Event::Rebooted { joint } => {
                     let why = format!("{joint}: drive reset");
                     self.stop(why.clone(), &mut notes);
-                    self.go_down(why, "", now);
+                    self.go_down(why, "");
                 }
                 Event::StreamStopped { joints } => {
                     let why = format!(
@@ -630,6 +630,50 @@ mod tests {
             .unwrap_err()
             .contains("queue 9"));
         assert!(trajectory_from_msg(&msg(1, 1, 5)).is_err());
+    }
+
+    #[test]
+    fn a_bridge_whose_drives_are_down_sleeps_until_its_next_attempt() {
+        use std::sync::atomic::{AtomicBool, Ordering};
+        use std::sync::Arc;
+        use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
+        let bus = stride_canbus::MemBus::new(1_000_000);
+        let stop = Arc::new(AtomicBool::new(false));
+        let drive =
+            FakeElmo::new(ElmoConfig::new(1), Levers::default()).spawn(bus.node(), stop.clone());
+        let cfg: BridgeConfig = toml::from_str(
+            &std::fs::read_to_string(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../../config/robots/archie-left-leg.toml"
+            ))
+            .unwrap(),
+        )
+        .unwrap();
+        let joint = cfg.joint[0].clone();
+        let mut master = Master::new(bus.node(), vec![joint], MasterConfig::default()).unwrap();
+        master.bring_up().unwrap();
+        let mut b = Bridge::new(master, 500);
+        // The drive dies: its heartbeat stops, the bridge goes down and waits to recover.
+        stop.store(true, Ordering::Relaxed);
+        let _ = drive.join();
+        let t0 = Instant::now();
+        while b.health().state != NodeStatusT::STATE_FAULT {
+            assert!(
+                t0.elapsed() < Duration::from_secs(3),
+                "no fault: {:?}",
+                b.health()
+            );
+            b.tick(Instant::now());
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        // Its next wake is the attempt, not a SYNC that is never sent while it is down.
+        let now = Instant::now();
+        assert!(
+            b.next_wake() > now + Duration::from_millis(400),
+            "{:?} {:?}",
+            b.next_wake().checked_duration_since(now),
+            b.health()
+        );
     }
 
     #[test]

@@ -116,9 +116,11 @@ fn main() -> anyhow::Result<()> {
     let (mut next_state, mut next_status) = (Instant::now(), Instant::now());
     while node.running() {
         let wake = bridge.next_wake().min(next_state).min(next_status);
-        let now = Instant::now();
-        if wake > now {
-            node.lcm().handle_timeout(wake - now)?;
+        if node
+            .lcm()
+            .handle_timeout(wake.saturating_duration_since(Instant::now()))?
+        {
+            node.lcm().handle_pending()?;
         }
         let now = Instant::now();
         while let Ok(m) = rx.try_recv() {

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use stride_canbus::{BusError, CanBus, CanFrame};
 use stride_canopen::frame::{CobId, Function, NodeId};
 use stride_canopen::heartbeat;
-use stride_canopen::nmt::{self, State as NmtState};
+use stride_canopen::nmt::State as NmtState;
 use stride_canopen::sdo::{self, Download, ServerResponse, Step, Upload};
 
 /// Why an exchange with a node failed.
@@ -160,16 +160,6 @@ fn protocol_abort<B: CanBus + ?Sized>(
         }
     }
     HostError::Sdo(e)
-}
-
-/// Sends an NMT command to `node` (0: every node).
-pub fn nmt<B: CanBus + ?Sized>(
-    bus: &mut B,
-    command: nmt::Command,
-    node: u8,
-    deadline: Instant,
-) -> Result<(), HostError> {
-    Ok(bus.send(&nmt::encode(command, node), deadline)?)
 }
 
 /// The host's own heartbeat: the node id it produces it under and its period. Poll it from

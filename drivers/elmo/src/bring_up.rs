@@ -55,6 +55,10 @@ impl<B: CanBus> Master<B> {
                 .iter()
                 .position(|a| a.state.updated.is_none_or(|u| u < since));
             let Some(a) = missing else {
+                // Heard from at bring-up: a drive whose heartbeat never comes is lost too.
+                for ax in &mut self.track.axes {
+                    ax.last_heartbeat.get_or_insert(now);
+                }
                 return Ok(());
             };
             if now >= deadline {
@@ -121,14 +125,19 @@ impl<B: CanBus> Master<B> {
         )?;
         let (window, decel) = {
             let ax = &self.track.axes[a];
-            let field = |x: f64, f| ax.units.magnitude(x, f);
+            // Both were shown to fit when the master was made; never a stand-in value.
+            let field = |x: f64, f| {
+                ax.units.magnitude(x, f).map_err(|e| MasterError::Setup {
+                    joint: ax.cfg.name.clone(),
+                    node: ax.node.get(),
+                    what: format!("{f}: {e}"),
+                })
+            };
             (
-                field(ax.cfg.tolerance, "0x6065"),
-                field(ax.cfg.max_acceleration, "0x6085"),
+                field(ax.cfg.tolerance, "0x6065")?,
+                field(ax.cfg.max_acceleration, "0x6085")?,
             )
         };
-        // Both were shown to fit when the master was made.
-        let (window, decel) = (window.unwrap_or(u32::MAX), decel.unwrap_or(u32::MAX));
         self.write(
             a,
             ds402::FOLLOWING_ERROR_WINDOW,
@@ -381,10 +390,7 @@ impl<B: CanBus> Master<B> {
             if last.as_ref() != Some(&fresh) {
                 last = Some(fresh);
                 let resting = self.track.axes.iter().all(|a| {
-                    // A count's worth of motion per SYNC is standing still.
-                    let noise =
-                        2.0 / (a.units.counts_per_rad().abs() * self.cfg.sync_period.as_secs_f64());
-                    a.state.velocity.abs() <= noise
+                    a.state.velocity.abs() <= a.still_speed(self.cfg.sync_period)
                         || !DriveState::from_statusword(a.state.statusword).torque()
                 });
                 still = if resting { still + 1 } else { 0 };

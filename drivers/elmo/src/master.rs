@@ -65,8 +65,9 @@ pub enum Event {
 }
 
 impl Event {
-    /// True for what a healthy system also sees now and then (a stream that stopped, a
-    /// refused command), false for faults of the drives or the bus.
+    /// True for faults of the drives or the bus (every event the bridge stops the drives
+    /// for), false for what a healthy system also sees now and then (a stream that ran dry
+    /// and decelerated).
     pub fn is_fault(&self) -> bool {
         !matches!(self, Event::StreamStopped { .. })
     }
@@ -150,6 +151,8 @@ pub(crate) struct Track {
     pub axes: Vec<Axis>,
     pub by_node: HashMap<u8, usize>,
     pub events: Vec<Event>,
+    /// Underflows since start, counted as they are reported.
+    pub underflows: u64,
     pub heartbeat: HeartbeatProducer,
     pub motion: Motion,
     pub drive_heartbeat: Duration,
@@ -280,6 +283,22 @@ impl Axis {
         }
     }
 
+    /// The speed a joint standing still may show between two states `period` apart: the
+    /// measurement's noise of a count or two.
+    pub fn still_speed(&self, period: Duration) -> f64 {
+        2.0 / (self.units.counts_per_rad().abs() * period.as_secs_f64())
+    }
+
+    /// The drive ended its motion at its last row: what was not played is gone from its
+    /// table, and the next motion starts from rest.
+    pub fn end_motion(&mut self) {
+        self.playing = false;
+        self.lag = 0;
+        self.written = 0;
+        self.queue.drain();
+        self.plan.finish();
+    }
+
     /// Forgets the motion: the drive dropped its table (a stop, a reset). Returns the rows
     /// dropped.
     pub fn drop_motion(&mut self, motion: Motion) -> usize {
@@ -390,10 +409,8 @@ impl Track {
                 // Every row written has been played: at the plan's end that is the motion's
                 // normal end, before it an underflow.
                 let expected = ax.plan.is_empty() || ax.plan.ended();
-                ax.queue.drain();
+                ax.end_motion();
                 ax.ended_at = None;
-                ax.playing = false;
-                ax.plan.finish();
                 if let Motion::InterpolatedPosition { .. } = motion {
                     // Bit 4 must fall before the next start (a rising edge starts).
                     let cw = ds402::ModeControl::InterpolatedPosition { enable: false }
@@ -402,6 +419,7 @@ impl Track {
                     let _ = bus.send(&f, now + host::SLICE);
                 }
                 if !expected {
+                    self.underflows += 1;
                     self.events.push(Event::Underflow {
                         joint: ax.cfg.name.clone(),
                     });
@@ -420,8 +438,12 @@ impl Track {
         }
     }
 
-    /// Declares lost the heartbeats of drives silent for three periods.
+    /// Declares lost the heartbeats of drives silent for three periods (none when the drives
+    /// send none).
     pub fn watch_heartbeats(&mut self, now: Instant) {
+        if self.drive_heartbeat.is_zero() {
+            return;
+        }
         let lost_after = self.drive_heartbeat * 3;
         for ax in &mut self.axes {
             if let Some(t) = ax.last_heartbeat {
@@ -527,6 +549,7 @@ impl<B: CanBus> Master<B> {
                 axes,
                 by_node,
                 events: Vec::new(),
+                underflows: 0,
                 heartbeat: HeartbeatProducer::new(master_node, cfg.master_heartbeat),
                 motion: cfg.motion,
                 drive_heartbeat: cfg.heartbeat,
@@ -581,7 +604,10 @@ impl<B: CanBus> Master<B> {
         Status {
             stopped: self.stopped.clone(),
             queued_until: end.map(|us| self.instant(us)),
-            counters: self.counters,
+            counters: Counters {
+                underflows: self.track.underflows,
+                ..self.counters
+            },
         }
     }
 

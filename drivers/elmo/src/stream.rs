@@ -104,6 +104,14 @@ impl<B: CanBus> Master<B> {
             Start::Now => earliest,
             Start::At(utime) => {
                 let s = now_us.saturating_add(utime.saturating_sub(wall_us()));
+                let bound = self.cfg.max_queue.as_micros() as i64;
+                if s.saturating_sub(now_us) > bound {
+                    return Err(bad(format!(
+                        "start_utime is {:.1} s from now; the queue holds {:.1} s",
+                        s.saturating_sub(now_us) as f64 * 1e-6,
+                        self.cfg.max_queue.as_secs_f64()
+                    )));
+                }
                 if s < now_us - 500 {
                     return Err(bad(format!(
                         "start_utime is {:.3} s in the past (0 starts at once)",
@@ -213,9 +221,8 @@ impl<B: CanBus> Master<B> {
                             (ax.state.position, ax.state.velocity)
                         }
                     };
-                    let counts = ax.units.counts_per_rad().abs();
-                    let noise = 2.0 / (counts * self.cfg.sync_period.as_secs_f64());
-                    let dv_max = ax.cfg.max_acceleration * 1e-3 + noise;
+                    let dv_max =
+                        ax.cfg.max_acceleration * 1e-3 + ax.still_speed(self.cfg.sync_period);
                     if vm.abs() > dv_max {
                         return Err(bad(format!(
                             "{name} is moving ({vm:.3} rad/s): a motion starts from rest"
@@ -354,11 +361,6 @@ impl<B: CanBus> Master<B> {
             }
         }
         self.track.watch_heartbeats(now);
-        for e in &self.track.events {
-            if let Event::Underflow { .. } = e {
-                self.counters.underflows += 1;
-            }
-        }
         Ok(())
     }
 
@@ -373,12 +375,8 @@ impl<B: CanBus> Master<B> {
                     .last_sent()
                     .is_some_and(|k| now_us - ax.lag >= k.t + 5000)
             {
-                ax.playing = false;
-                ax.lag = 0;
-                ax.written = 0;
                 ax.ended_at = Some(ax.queue.write_index());
-                ax.queue.drain();
-                ax.plan.finish();
+                ax.end_motion();
             }
         }
     }
@@ -400,7 +398,9 @@ impl<B: CanBus> Master<B> {
                 if ax.queue.room() <= per_frame as u64 {
                     continue;
                 }
-                let starved = ax.playing && ax.queue.pending() < 3;
+                // Playing, or loaded to start (the start waits for two rows), on few rows:
+                // the next rows go now, however far ahead they play.
+                let starved = (ax.playing || ax.start_at.is_some()) && ax.queue.pending() < 3;
                 let until = if starved {
                     i64::MAX
                 } else {
@@ -486,7 +486,6 @@ impl<B: CanBus> Master<B> {
         Ok(())
     }
 
-    /// Every axis whose motion begins now gets its start, together.
     /// Every axis whose motion begins now gets its start: first every such axis's read
     /// pointer at its motion's first row, then the starts back to back, so the axes begin
     /// within a few frames' time of each other. What the controller's queue cannot take now
@@ -518,15 +517,20 @@ impl<B: CanBus> Master<B> {
                         go.push((Some((a, at)), f));
                     }
                 }
-                // RPDO1 carries the controlword: enable operation + enable interpolation.
-                Motion::InterpolatedPosition { .. } => go.push((
-                    Some((a, at)),
-                    ds402::controlword_frame(
-                        controlword_rpdo().cob_id(node),
-                        ds402::ModeControl::InterpolatedPosition { enable: true }
-                            .controlword(ds402::Command::EnableOperation, false),
-                    ),
-                )),
+                // RPDO1 carries the controlword: enable operation + enable interpolation, on a
+                // rising edge of bit 4 whatever the end of the last motion left it at.
+                Motion::InterpolatedPosition { .. } => {
+                    let cob = controlword_rpdo().cob_id(node);
+                    let cw = |enable| {
+                        ds402::controlword_frame(
+                            cob,
+                            ds402::ModeControl::InterpolatedPosition { enable }
+                                .controlword(ds402::Command::EnableOperation, false),
+                        )
+                    };
+                    self.starts.push_back((None, cw(false)));
+                    go.push((Some((a, at)), cw(true)));
+                }
             }
         }
         self.starts.extend(go);

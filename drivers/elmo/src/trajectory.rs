@@ -68,9 +68,13 @@ fn bad(why: String) -> MasterError {
     MasterError::BadTrajectory(why)
 }
 
+/// The latest a row may be from its trajectory's start, s: far past any queue's bound, and
+/// far inside the µs arithmetic's range.
+pub const MAX_TIME_S: f64 = 1e6;
+
 /// Checks what can be checked of a trajectory alone: joints known (by `find`) and named once,
 /// one time and one row of the right width per row, times finite and strictly increasing
-/// from 0 or later, PVT rows on whole milliseconds (`pvt`), every value finite and within
+/// from 0 or later (up to [`MAX_TIME_S`]), PVT rows on whole milliseconds (`pvt`), every value finite and within
 /// its joint's position and velocity limits (`limits`). Returns each column's joint.
 pub fn check_shape<'a>(
     t: &Trajectory,
@@ -96,6 +100,11 @@ pub fn check_shape<'a>(
         if !time.is_finite() || time < 0.0 {
             return Err(bad(format!(
                 "row {r}: time {time} s is not a time from the start"
+            )));
+        }
+        if time > MAX_TIME_S {
+            return Err(bad(format!(
+                "row {r}: time {time} s from the start is past any queue (at most {MAX_TIME_S} s)"
             )));
         }
         if r > 0 && time <= t.times[r - 1] {

@@ -687,3 +687,100 @@ fn move_right_after_move(motion: Motion) {
     }
     r.finish();
 }
+
+#[test]
+fn an_interpolated_move_after_another_starts_when_pumped_as_the_bridge_does() {
+    // The bridge pumps every few milliseconds: the master ends a motion on its own clock
+    // before the drive's report of the end comes, and the next start must still be a rising
+    // edge of the controlword's bit 4.
+    let mut r = Rig::new(1, Motion::InterpolatedPosition { period_ms: 10 });
+    let pump = |r: &mut Rig, d: Duration| {
+        let end = Instant::now() + d;
+        while Instant::now() < end {
+            r.m.pump(Instant::now()).unwrap();
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    };
+    for to in [0.2, 0.0, 0.2] {
+        let from = r.positions()[0];
+        r.m.load(&minjerk(&["j1"], &[from], &[to], 0.3), Instant::now())
+            .unwrap();
+        pump(&mut r, Duration::from_millis(700));
+        assert!(r.m.idle(), "the move to {to} did not end");
+        assert!(
+            (r.positions()[0] - to).abs() < 1e-3,
+            "the move to {to} ended at {}",
+            r.positions()[0]
+        );
+    }
+    let events = r.m.take_events();
+    assert!(
+        !events.iter().any(|e| matches!(e, Event::Underflow { .. })),
+        "{events:?}"
+    );
+    r.finish();
+}
+
+#[test]
+fn a_move_with_rows_further_apart_than_the_lookahead_starts_on_time() {
+    // Two rows 250 ms apart: the start waits for both in the table, so the second must not
+    // wait for its lookahead.
+    let mut r = Rig::new(1, Motion::Pvt);
+    let a =
+        r.m.load(
+            &rows("j1", &[(0.0, 0.0, 0.0), (0.25, 0.1, 0.0)]),
+            Instant::now(),
+        )
+        .unwrap();
+    let moved = r
+        .record(Duration::from_millis(400))
+        .into_iter()
+        .find(|(_, p)| p[0] > 1e-3)
+        .map(|(t, _)| t)
+        .expect("it moved");
+    let late = moved.saturating_duration_since(a.start);
+    assert!(late < Duration::from_millis(60), "started {late:?} late");
+    r.play();
+    r.finish();
+}
+
+#[test]
+fn an_underflow_is_counted_once() {
+    // A master that stops pumping mid-motion lets the drive run out of rows: one underflow,
+    // counted once however often the master pumps before its events are taken.
+    // (The drives' watch on the master is longer than the stall, or they would stop first.)
+    let mut r = Rig::with(
+        1,
+        MasterConfig {
+            drive_watchdog: Duration::from_secs(2),
+            ..Default::default()
+        },
+    );
+    r.m.load(&minjerk(&["j1"], &[0.0], &[0.5], 1.0), Instant::now())
+        .unwrap();
+    r.run(Duration::from_millis(200));
+    std::thread::sleep(Duration::from_millis(400));
+    r.run(Duration::from_millis(200));
+    let underflows =
+        r.m.take_events()
+            .iter()
+            .filter(|e| matches!(e, Event::Underflow { .. }))
+            .count();
+    assert_eq!(underflows, 1);
+    assert_eq!(r.m.status().counters.underflows, 1);
+    r.finish();
+}
+
+#[test]
+fn times_past_any_queue_are_refused_not_overflowed() {
+    let mut r = Rig::new(1, Motion::Pvt);
+    let far = rows("j1", &[(0.0, 0.0, 0.0), (1e13, 0.0, 0.0)]);
+    let e = r.m.load(&far, Instant::now()).unwrap_err().to_string();
+    assert!(e.contains("past any queue"), "{e}");
+    let mut late = rows("j1", &[(0.0, 0.0, 0.0), (0.1, 0.0, 0.0)]);
+    late.start = Start::At(i64::MAX);
+    let e = r.m.load(&late, Instant::now()).unwrap_err().to_string();
+    assert!(e.contains("the queue holds"), "{e}");
+    assert_eq!(r.m.status().counters.refused, 2);
+    r.finish();
+}
