@@ -23,15 +23,7 @@ use stride_canbus::{BusError, CanBus, CanFrame, MemBus, MemNode};
 use stride_elmo::{JointConfig, Master, MasterConfig, Motion, Start, Trajectory};
 use stride_fakes::dongle::FakeDongle;
 use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
-use stride_tests as _;
-
-fn pct(v: &mut [f64], p: f64) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    v[((p / 100.0) * (v.len() - 1) as f64).round() as usize]
-}
+use stride_tests::percentile as pct;
 
 /// This thread's CPU time.
 fn cpu() -> Duration {
@@ -55,18 +47,26 @@ struct Noting {
 
 impl CanBus for Noting {
     fn send(&mut self, f: &CanFrame, deadline: Instant) -> Result<(), BusError> {
-        self.inner.send(f, deadline)?;
-        if (0x401..=0x47f).contains(&f.raw_id()) {
-            let mut d = [0u8; 8];
-            d[..f.data().len()].copy_from_slice(f.data());
-            self.sent
-                .lock()
-                .unwrap()
-                .entry(f.raw_id())
-                .or_default()
-                .push_back((Instant::now(), d));
+        if !(0x401..=0x47f).contains(&f.raw_id()) {
+            return self.inner.send(f, deadline);
         }
-        Ok(())
+        // Noted before it goes: the drives' side may see it before this send returns.
+        let mut d = [0u8; 8];
+        d[..f.data().len()].copy_from_slice(f.data());
+        self.sent
+            .lock()
+            .unwrap()
+            .entry(f.raw_id())
+            .or_default()
+            .push_back((Instant::now(), d));
+        let r = self.inner.send(f, deadline);
+        if r.is_err() {
+            let mut s = self.sent.lock().unwrap();
+            if let Some(q) = s.get_mut(&f.raw_id()) {
+                q.pop_back();
+            }
+        }
+        r
     }
     fn recv(&mut self, deadline: Instant) -> Result<CanFrame, BusError> {
         self.inner.recv(deadline)
@@ -164,9 +164,13 @@ fn twelve_axes(secs: f64) -> Axes {
                     continue;
                 }
                 let now = Instant::now();
+                let mut d = [0u8; 8];
+                d[..f.data().len()].copy_from_slice(f.data());
                 let mut s = sent.lock().unwrap();
+                // The frame's own send: the oldest noted with its bytes.
                 if let Some(q) = s.get_mut(&f.raw_id()) {
-                    if let Some((t, _)) = q.pop_front() {
+                    if let Some(i) = q.iter().position(|(_, b)| *b == d) {
+                        let (t, _) = q.drain(..=i).next_back().expect("found");
                         lat.lock().unwrap().push((now - t).as_secs_f64() * 1e6);
                     }
                 }

@@ -29,7 +29,7 @@ use stride_fakes::dynamixel::{ChainLevers, FakeChain, Servo};
 use stride_link::{JointCommand, Message, Mode};
 use stride_link_host::Session;
 use stride_serial::{pty_pair, wire_time, Paced, Transport};
-use stride_tests as _;
+use stride_tests::percentile as pct;
 
 /// Counts the bytes that cross a transport.
 struct Counting<T> {
@@ -54,11 +54,6 @@ impl<T: Transport> Transport for Counting<T> {
     fn baud(&self) -> u32 {
         self.inner.baud()
     }
-}
-
-fn pct(v: &mut [f64], p: f64) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[((p / 100.0) * (v.len() - 1) as f64).round() as usize]
 }
 
 /// The same bytes as a cycle, with no protocol at either end: for each transaction the host

@@ -91,6 +91,15 @@ pub fn lcm_logger(url: &str, channels: &str, path: &std::path::Path, probe: &str
     panic!("lcm-logger recorded nothing on {probe} within 20 s");
 }
 
+/// The `p`-th percentile of `v` (sorted in place; NaN when empty), for the benchmarks.
+pub fn percentile(v: &mut [f64], p: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[((p / 100.0) * (v.len() - 1) as f64).round() as usize]
+}
+
 /// Starts a fake-device process (`fake-can-rig`, `fake-dynamixel-chain`, `fake-due`) with
 /// `args` on a pseudo-terminal whose path it writes into `dir`; returns the process and that
 /// path once it is there.

@@ -44,7 +44,6 @@ fn peers_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("peers")
 }
 
-/// Starts a rig binary that writes its pty's path to `--pty-file`; the rig and the path.
 /// Runs a peer script with `args`; its report, which must say every check passed.
 fn script(py: &Path, name: &str, args: &[&str]) -> String {
     let mut c = Command::new(py);

@@ -21,6 +21,18 @@ pub struct JointConfig {
     pub max_position: f64,
 }
 
+impl JointConfig {
+    /// The joint's limits as every bridge checks them (position only: the board takes no
+    /// speed).
+    pub fn limits(&self) -> stride_limits::Limits {
+        stride_limits::Limits {
+            min_position: self.min_position,
+            max_position: self.max_position,
+            max_velocity: f64::INFINITY,
+        }
+    }
+}
+
 /// The app's TOML configuration.
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -95,10 +107,11 @@ impl LinkConfig {
             if !(j.max_duty > 0.0 && j.max_duty <= 1.0) {
                 return Err(format!("joint {}: max_duty must be in (0, 1]", j.name));
             }
-            if !(j.min_position < j.max_position && j.min_position >= -3.2 && j.max_position <= 3.2)
-            {
+            j.limits().check(&j.name)?;
+            // The link carries positions as 1e-4 rad in an i16.
+            if j.min_position < -3.2 || j.max_position > 3.2 {
                 return Err(format!(
-                    "joint {}: position limits must be ordered, within ±3.2 rad",
+                    "joint {}: position limits must be within ±3.2 rad",
                     j.name
                 ));
             }
@@ -120,11 +133,6 @@ impl LinkConfig {
         for (k, &i) in cols.iter().enumerate() {
             let j = &self.joint[i];
             let v = c.setpoints[k];
-            let limits = stride_limits::Limits {
-                min_position: j.min_position,
-                max_position: j.max_position,
-                max_velocity: f64::INFINITY,
-            };
             let (mode, value) = match c.modes[k] {
                 JointCommandT::MODE_DUTY => {
                     if v.is_nan() || v.abs() > j.max_duty {
@@ -136,7 +144,7 @@ impl LinkConfig {
                     (Mode::Duty, (v * 10_000.0).round() as i16)
                 }
                 JointCommandT::MODE_POSITION => {
-                    limits.position(&j.name, v)?;
+                    j.limits().position(&j.name, v)?;
                     (Mode::Position, (v * 10_000.0).round() as i16)
                 }
                 JointCommandT::MODE_BRAKE => (Mode::Brake, 0),

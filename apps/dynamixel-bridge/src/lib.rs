@@ -78,13 +78,15 @@ impl BridgeConfig {
         if self.return_delay_us > 508 {
             return Err("return_delay_us is at most 508".into());
         }
-        if self.bus_watchdog_ms != 0 && !(20..=2540).contains(&self.bus_watchdog_ms) {
-            return Err(format!(
-                "bus_watchdog_ms {} outside 20..=2540 (0: off)",
-                self.bus_watchdog_ms
-            ));
+        if self.bus_watchdog_ms != 0 {
+            stride_dynamixel_chain::watchdog_units(Duration::from_millis(self.bus_watchdog_ms))
+                .map_err(|e| format!("bus_watchdog_ms: {e} (0: off)"))?;
         }
-        if self.bus_watchdog_ms != 0 && (self.bus_watchdog_ms as f64) < 2000.0 / self.rate_hz {
+        // Protocol 1.0 servos have no bus watchdog: the setting does nothing there.
+        if protocol == stride_dynamixel::Protocol::V2
+            && self.bus_watchdog_ms != 0
+            && (self.bus_watchdog_ms as f64) < 2000.0 / self.rate_hz
+        {
             return Err(format!(
                 "bus_watchdog_ms {} is less than two cycles at {} Hz: the servos would stop",
                 self.bus_watchdog_ms, self.rate_hz
@@ -158,7 +160,9 @@ enum Line {
     Up,
     Lost {
         why: String,
+        /// When the next attempt is due.
         next: Instant,
+        /// The wait after that attempt, should it fail (it doubles each time).
         delay: Duration,
         tries: u32,
     },
@@ -216,19 +220,19 @@ impl<T: Transport> Bridge<T> {
             let why = format!("the servo line is down ({why})");
             return refused(self, why);
         }
+        if let Err(e) = stride_limits::lengths(c.names.len(), &[("modes", c.modes.len())]) {
+            return refused(self, e.to_string());
+        }
         if let Some(k) = c
             .modes
             .iter()
             .position(|m| *m != JointCommandT::MODE_POSITION)
         {
-            let name = c.names.get(k).cloned().unwrap_or_default();
-            return refused(
-                self,
-                format!("joint {name}: only position commands are taken"),
-            );
-        }
-        if c.modes.len() != c.names.len() {
-            return refused(self, "arrays of different lengths".into());
+            let e = stride_limits::Reject::Mode {
+                joint: c.names[k].clone(),
+                what: "only position commands are taken".into(),
+            };
+            return refused(self, e.to_string());
         }
         match self
             .chain
@@ -277,14 +281,14 @@ impl<T: Transport> Bridge<T> {
                 }
                 Err(e) => {
                     *next = now + *delay;
-                    *delay = (*delay * 2).min(MAX_RECONNECT);
                     // Once in a while, not every attempt.
                     if tries.is_power_of_two() {
                         notes.push(Note::Warn(format!(
                             "servo line still down ({e}); attempt {tries}, next in {:.1} s",
-                            delay.as_secs_f64() / 2.0
+                            delay.as_secs_f64()
                         )));
                     }
+                    *delay = (*delay * 2).min(MAX_RECONNECT);
                     self.detail = format!("{why}; reconnecting: {e}");
                 }
             }

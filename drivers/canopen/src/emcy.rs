@@ -23,6 +23,8 @@ impl Emcy {
     pub const HEARTBEAT_ERROR: u16 = 0x8130;
     /// Following error (CiA 402).
     pub const FOLLOWING_ERROR: u16 = 0x8611;
+    /// A PDO not processed because of its length (CiA 301).
+    pub const PDO_LENGTH: u16 = 0x8210;
 
     /// The "error reset" a node sends when its error condition clears (register as it is
     /// after the reset, usually 0).
@@ -78,7 +80,7 @@ pub fn describe_code(code: u16) -> &'static str {
         0x8130 => "life guard or heartbeat error",
         0x8140 => "recovered from bus off",
         0x8150 => "CAN-ID collision",
-        0x8210 => "PDO not processed due to length error",
+        Emcy::PDO_LENGTH => "PDO not processed due to length error",
         0x8220 => "PDO length exceeded",
         0x8240 => "unexpected SYNC data length",
         0x8250 => "RPDO timeout",

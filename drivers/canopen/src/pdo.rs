@@ -11,6 +11,26 @@ pub enum Direction {
     Transmit,
 }
 
+impl Direction {
+    /// Index of PDO `n`'s communication parameter object (`n` from 1).
+    pub fn comm_index(self, n: u8) -> u16 {
+        let base: u16 = match self {
+            Direction::Receive => 0x1400,
+            Direction::Transmit => 0x1800,
+        };
+        base + n as u16 - 1
+    }
+
+    /// Index of PDO `n`'s mapping object (`n` from 1).
+    pub fn map_index(self, n: u8) -> u16 {
+        let base: u16 = match self {
+            Direction::Receive => 0x1600,
+            Direction::Transmit => 0x1a00,
+        };
+        base + n as u16 - 1
+    }
+}
+
 /// One mapped object: index, sub-index and length in bits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct MapEntry {
@@ -54,20 +74,12 @@ pub struct PdoConfig {
 impl PdoConfig {
     /// Index of the communication parameter object.
     pub fn comm_index(&self) -> u16 {
-        let base: u16 = match self.direction {
-            Direction::Receive => 0x1400,
-            Direction::Transmit => 0x1800,
-        };
-        base + self.number as u16 - 1
+        self.direction.comm_index(self.number)
     }
 
     /// Index of the mapping object.
     pub fn map_index(&self) -> u16 {
-        let base: u16 = match self.direction {
-            Direction::Receive => 0x1600,
-            Direction::Transmit => 0x1a00,
-        };
-        base + self.number as u16 - 1
+        self.direction.map_index(self.number)
     }
 
     /// The predefined COB-ID of this PDO on `node`.

@@ -83,6 +83,22 @@ pub struct ChainConfig {
     pub bus_watchdog: Option<Duration>,
 }
 
+/// A bus watchdog time as the servos' item 98 holds it: whole 20 ms units, 1..=127; any
+/// other time is refused (never rounded to a shorter one the servos would stop on).
+pub fn watchdog_units(w: Duration) -> Result<u8, String> {
+    let ms = w.as_millis();
+    if !(20..=2540).contains(&ms)
+        || !ms.is_multiple_of(20)
+        || !w.subsec_nanos().is_multiple_of(1_000_000)
+    {
+        return Err(format!(
+            "a bus watchdog of {} ms is not a whole number of 20 ms units in 20..=2540",
+            w.as_secs_f64() * 1e3
+        ));
+    }
+    Ok((ms / 20) as u8)
+}
+
 /// Checks a chain's servos; returns their protocol.
 pub fn check(servos: &[ServoConfig]) -> Result<Protocol, String> {
     let first = servos
@@ -250,6 +266,8 @@ pub struct Chain<T: Transport> {
     read: ReadMany,
     last_command: Option<Instant>,
     holding: bool,
+    /// The bus watchdog in item 98's units (`None`: off).
+    watchdog: Option<u8>,
 }
 
 impl<T: Transport> Chain<T> {
@@ -276,14 +294,7 @@ impl<T: Transport> Chain<T> {
                 ))
             }
         };
-        if let Some(w) = cfg.bus_watchdog {
-            if !(Duration::from_millis(20)..=Duration::from_millis(2540)).contains(&w) {
-                return Err(format!(
-                    "a bus watchdog of {} ms is outside 20..=2540 (20 ms units)",
-                    w.as_millis()
-                ));
-            }
-        }
+        let watchdog = cfg.bus_watchdog.map(watchdog_units).transpose()?;
         let bus_cfg = BusConfig {
             margin: cfg.margin,
             retries: cfg.retries,
@@ -298,6 +309,7 @@ impl<T: Transport> Chain<T> {
             read,
             last_command: None,
             holding: false,
+            watchdog,
             cfg,
         })
     }
@@ -397,8 +409,8 @@ impl<T: Transport> Chain<T> {
         if j.model.item("bus_watchdog").is_some() {
             // 0 first: it clears a watchdog that tripped while the host was away.
             writes.push(("bus_watchdog", 0));
-            if let Some(w) = self.cfg.bus_watchdog {
-                writes.push(("bus_watchdog", (w.as_millis() / 20) as i64));
+            if let Some(units) = self.watchdog {
+                writes.push(("bus_watchdog", units as i64));
             }
         }
         for (name, value) in writes {

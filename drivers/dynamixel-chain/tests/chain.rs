@@ -326,6 +326,17 @@ fn the_chain_comes_back_holding_after_its_port_returns() {
     let c = cfg(shipped("arm-xm430.toml"));
     let mut s = sim(c.clone(), None);
     s.chain.bring_up().unwrap();
+    // A move under way when the port goes: its goal must not come back with the port.
+    let first = s.chain.joints()[0].cfg.name.clone();
+    let goal = s.chain.joints()[0].rad(2048) + 0.3;
+    s.chain
+        .command(
+            std::slice::from_ref(&first),
+            &[goal],
+            &[0.0],
+            Instant::now(),
+        )
+        .unwrap();
     s.chain.cycle(Instant::now()).unwrap();
     // The port vanishes: every cycle fails.
     s.end();
@@ -337,7 +348,10 @@ fn the_chain_comes_back_holding_after_its_port_returns() {
     s.stop = stop;
     s.h = Some(h);
     s.chain.reattach(line).unwrap();
-    s.chain.cycle(Instant::now()).unwrap();
+    for _ in 0..10 {
+        s.chain.cycle(Instant::now()).unwrap();
+        std::thread::sleep(Duration::from_millis(20));
+    }
     for (j, m) in s.chain.joints().iter().zip(s.chain.measured()) {
         assert!(
             (m.position - j.rad(2048)).abs() < 1e-3,
@@ -346,8 +360,19 @@ fn the_chain_comes_back_holding_after_its_port_returns() {
             m.position
         );
     }
-    let first = s.chain.joints()[0].cfg.name.clone();
     s.chain
         .command(&[first], &[0.3], &[0.0], Instant::now())
         .unwrap();
+}
+
+#[test]
+fn a_bus_watchdog_off_the_20_ms_grid_is_refused_not_shortened() {
+    use stride_dynamixel_chain::watchdog_units;
+    let ms = Duration::from_millis;
+    assert_eq!(watchdog_units(ms(40)), Ok(2));
+    assert_eq!(watchdog_units(ms(2540)), Ok(127));
+    // 35 ms was written as one unit (20 ms): the servos stopped between cycles.
+    for bad in [ms(35), ms(10), ms(2560), Duration::from_micros(40_500)] {
+        assert!(watchdog_units(bad).is_err(), "{bad:?}");
+    }
 }

@@ -361,7 +361,11 @@ impl Servo {
         }
         self.table = next;
         self.id = self.get("id") as u8;
-        if (a..a + n).contains(&98) && self.model.item("bus_watchdog").is_some() {
+        if self
+            .model
+            .item("bus_watchdog")
+            .is_some_and(|w| (a..a + n).contains(&(w.address as usize)))
+        {
             // A new watchdog time (or 0, which clears its error) counts from now.
             self.silent_for = 0.0;
         }

@@ -240,7 +240,7 @@ impl FakeElmo {
             }) => {
                 if let Ok((cmd, target)) = stride_canopen::nmt::decode(f) {
                     if target == 0 || target == node.get() {
-                        self.on_nmt(cmd, now);
+                        self.on_nmt(cmd);
                     }
                 }
                 return;

@@ -26,7 +26,7 @@ impl FakeElmo {
         self.heard.clear();
     }
 
-    pub(super) fn on_nmt(&mut self, cmd: nmt::Command, now: Instant) {
+    pub(super) fn on_nmt(&mut self, cmd: nmt::Command) {
         match cmd {
             nmt::Command::ResetNode => {
                 let node = self.cfg.node;
@@ -48,7 +48,6 @@ impl FakeElmo {
             }
             c => self.nmt = self.nmt.after(c),
         }
-        let _ = now;
     }
 
     /// Sends the heartbeat when 0x1017 says it is due.

@@ -23,22 +23,6 @@ fn pdo_of(index: u16) -> Option<(Direction, u8, bool)> {
     Some((direction, (index - base) as u8 + 1, comm))
 }
 
-fn comm_index(direction: Direction, n: u8) -> u16 {
-    let base: u16 = match direction {
-        Direction::Receive => 0x1400,
-        Direction::Transmit => 0x1800,
-    };
-    base + (n - 1) as u16
-}
-
-fn map_index(direction: Direction, n: u8) -> u16 {
-    let base: u16 = match direction {
-        Direction::Receive => 0x1600,
-        Direction::Transmit => 0x1a00,
-    };
-    base + (n - 1) as u16
-}
-
 fn le_u32(data: &[u8]) -> u32 {
     let mut b = [0u8; 4];
     b[..data.len().min(4)].copy_from_slice(&data[..data.len().min(4)]);
@@ -48,7 +32,7 @@ fn le_u32(data: &[u8]) -> u32 {
 impl FakeElmo {
     /// True while PDO `n` exists (bit 31 of its COB-ID clear).
     fn pdo_valid(&self, direction: Direction, n: u8) -> bool {
-        self.od.get_u(comm_index(direction, n), 1) as u32 & 0x8000_0000 == 0
+        self.od.get_u(direction.comm_index(n), 1) as u32 & 0x8000_0000 == 0
     }
 
     /// The CiA 301 rules for writing a PDO's parameters: the COB-ID of a valid PDO does not
@@ -116,12 +100,12 @@ impl FakeElmo {
 
     /// PDO `n`'s mapping as it stands.
     pub(super) fn mapping(&self, direction: Direction, n: u8) -> PdoConfig {
-        let base = map_index(direction, n);
+        let base = direction.map_index(n);
         let count = self.od.get_u(base, 0) as u8;
         PdoConfig {
             direction,
             number: n,
-            transmission: self.od.get_u(comm_index(direction, n), 2) as u8,
+            transmission: self.od.get_u(direction.comm_index(n), 2) as u8,
             entries: (1..=count.min(8))
                 .map(|s| MapEntry::from_u32(self.od.get_u(base, s) as u32))
                 .collect(),
@@ -135,7 +119,7 @@ impl FakeElmo {
         }
         self.sync_count = self.sync_count.wrapping_add(1);
         for n in [1u8, 3, 4] {
-            let cob = self.od.get_u(comm_index(Direction::Transmit, n), 1) as u32;
+            let cob = self.od.get_u(Direction::Transmit.comm_index(n), 1) as u32;
             let cfg = self.mapping(Direction::Transmit, n);
             let kind = cfg.transmission as u32;
             if cob & 0x8000_0000 != 0
@@ -158,7 +142,7 @@ impl FakeElmo {
     /// A frame that may be one of the receive PDOs 1, 3, 4.
     pub(super) fn on_rpdo(&mut self, id: u16, data: &[u8], now: Instant) {
         for n in [1u8, 3, 4] {
-            let cob = self.od.get_u(comm_index(Direction::Receive, n), 1) as u32;
+            let cob = self.od.get_u(Direction::Receive.comm_index(n), 1) as u32;
             if cob & 0x8000_0000 == 0 && cob & 0x7ff == id as u32 {
                 self.write_rpdo(n, data, now);
             }
@@ -171,7 +155,7 @@ impl FakeElmo {
             // PDO not processed: length error.
             let e = Emcy {
                 node: self.cfg.node,
-                code: 0x8210,
+                code: Emcy::PDO_LENGTH,
                 register: 0x11,
                 manufacturer: [0; 5],
             };
