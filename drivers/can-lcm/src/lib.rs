@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use lcm::{Lcm, Subscription};
-use stride_can::CanFrame;
+use stride_can::{CanFrame, ExtendedId, Id, StandardId};
 use stride_canbus::{BusError, CanBus};
 use stride_lcmtypes::stride::{CanFrameBatchT, CanFrameT, HeaderT};
 
@@ -69,18 +69,27 @@ pub fn msg_to_frame(m: &CanFrameT) -> Result<CanFrame, BadFrame> {
     if !(0..=8).contains(&m.dlc) {
         return Err(BadFrame::Dlc(m.dlc));
     }
-    let n = m.dlc as usize;
     let bad = || BadFrame::Id(m.id);
-    let f = if m.extended {
-        CanFrame::extended(u32::try_from(m.id).map_err(|_| bad())?, &m.data[..n])
+    let id = if m.extended {
+        Id::Extended(
+            u32::try_from(m.id)
+                .ok()
+                .and_then(ExtendedId::new)
+                .ok_or_else(bad)?,
+        )
     } else {
-        CanFrame::standard(u16::try_from(m.id).map_err(|_| bad())?, &m.data[..n])
-    }
-    .map_err(|_| bad())?;
+        Id::Standard(
+            u16::try_from(m.id)
+                .ok()
+                .and_then(StandardId::new)
+                .ok_or_else(bad)?,
+        )
+    };
+    // The length was checked above: neither can fail.
     if m.rtr {
-        CanFrame::remote(f.id(), m.dlc as u8).map_err(|_| BadFrame::Dlc(m.dlc))
+        CanFrame::remote(id, m.dlc as u8).map_err(|_| BadFrame::Dlc(m.dlc))
     } else {
-        Ok(f)
+        CanFrame::data_frame(id, &m.data[..m.dlc as usize]).map_err(|_| BadFrame::Dlc(m.dlc))
     }
 }
 

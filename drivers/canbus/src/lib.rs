@@ -176,6 +176,8 @@ pub struct MemNode {
 
 impl CanBus for MemNode {
     fn send(&mut self, frame: &CanFrame, _deadline: Instant) -> Result<(), BusError> {
+        // Worked out before the bus is held: every node's send waits on the lock.
+        let bits = frame.wire_bits();
         let mut g = self.bus.lock();
         if g.bus_off {
             return Err(BusError::BusOff);
@@ -188,7 +190,7 @@ impl CanBus for MemNode {
         if q.len() >= TX_QUEUE {
             return Err(BusError::TxQueueFull);
         }
-        let on_wire = g.bit_time * frame.wire_bits();
+        let on_wire = g.bit_time * bits;
         let start = g.free_at.max(now);
         let end = start + on_wire;
         g.free_at = end;
