@@ -284,6 +284,12 @@ fn slcan(frames: usize) -> Slcan {
     .unwrap();
     let f = CanFrame::standard(0x321, &[0x55, 0xaa, 0x55, 0xaa, 0x55, 0xaa, 0x55, 0xaa]).unwrap();
     let limit = 1e6 / f.wire_bits() as f64;
+    // The limit against the textbook, without our code: a standard frame of 8 bytes is 111
+    // bits with its interframe space, and stuffing adds at most 24.
+    assert!(
+        (1e6 / 135.0..=1e6 / 111.0).contains(&limit),
+        "the frame's length is off: {limit:.0} frames/s"
+    );
     // Host to bus: a node counts what arrives.
     let mut sink = bus.node();
     let count = std::thread::spawn(move || {
