@@ -116,8 +116,10 @@ fn a_flood_from_lcm_is_dropped_and_counted_never_sent_late_and_the_gateway_answe
     assert!(full > 0, "a full queue refused nothing: {after:?}");
     assert!(stale > 0, "no frame was dropped for its age: {after:?}");
     assert_eq!(after.invalid - before.invalid, 1, "{after:?}");
-    // Every frame accounted for: sent, or dropped with its reason.
-    assert_eq!(to_wire + full + stale, flood + 2, "{after:?}");
+    // Every frame accounted for: sent, dropped with its reason, or handed to the dongle and
+    // not confirmed in time (counted, never sent again; a busy machine can delay the ack).
+    let unconfirmed = after.send_errors - before.send_errors;
+    assert_eq!(to_wire + full + stale + unconfirmed, flood + 2, "{after:?}");
     assert_eq!(after.queue_capacity as usize, QUEUE);
     assert_eq!(after.max_age_ms as u64, MAX_AGE_MS);
     // After the flood the gateway answers at once: an SDO read of the drive behind it.
