@@ -292,18 +292,20 @@ fn streamed_chunks_join_without_a_stop() {
         .filter(|e| matches!(e, Event::StreamStopped { .. }))
         .collect();
     assert_eq!(stops.len(), 1, "only the end of the stream stops: {ev:?}");
-    // Cruising at 0.5 rad/s through the joins (speeds over 50 ms; the states answer SYNCs
-    // 10 ms apart, so their spacing is a whole number of periods whatever their arrival's
-    // jitter on a busy machine).
-    let mid: Vec<f64> = trace
-        .windows(6)
-        .take(30)
-        .map(|w| {
-            let periods = ((w[5].0 - w[0].0).as_secs_f64() / 0.01).round();
-            (w[5].1[0] - w[0].1[0]) / (periods * 0.01)
-        })
-        .collect();
-    assert!(mid.iter().all(|s| (s - v).abs() < 0.03), "{mid:?}");
+    // Cruising at 0.5 rad/s through the joins. The states answer SYNCs 10 ms apart, so
+    // their spacing is a whole number of periods whatever their arrival's jitter; a SYNC
+    // sent late on a busy machine still samples the motor late, so the mean speed is taken
+    // over 200 ms (a few ms of lateness is a few per cent there) and no 50 ms stretch may
+    // slow as a stop between chunks would.
+    let speed = |w: &[(Instant, Vec<f64>)]| {
+        let (a, b) = (&w[0], &w[w.len() - 1]);
+        let periods = ((b.0 - a.0).as_secs_f64() / 0.01).round();
+        (b.1[0] - a.1[0]) / (periods * 0.01)
+    };
+    let mean: Vec<f64> = trace.windows(21).take(30).map(speed).collect();
+    assert!(mean.iter().all(|s| (s - v).abs() < 0.03), "{mean:?}");
+    let short: Vec<f64> = trace.windows(6).take(45).map(speed).collect();
+    assert!(short.iter().all(|s| *s > 0.6 * v), "{short:?}");
     r.finish();
 }
 
