@@ -18,6 +18,23 @@ pub enum Error {
         /// The URL as given (after the default was substituted).
         url: String,
     },
+    /// `lcm_create` found no `tcpq://` server to connect to (or refused the URL's host or
+    /// port; liblcm prints which).
+    #[error("LCM URL {url}: cannot reach the server")]
+    Connect {
+        /// The URL.
+        url: String,
+    },
+    /// The instance has no file descriptor to wait on: a `tcpq://` connection broke, or
+    /// `udpm://` could not set up receiving.
+    #[error(
+        "LCM URL {url}: the instance has no descriptor to wait on (a tcpq:// server connection \
+         broke, or udpm:// could not set up receiving)"
+    )]
+    NoDescriptor {
+        /// The instance's URL.
+        url: String,
+    },
     /// A channel name is empty, longer than 63 bytes or contains a NUL byte.
     #[error("invalid channel name {channel:?}: {reason}")]
     Channel {

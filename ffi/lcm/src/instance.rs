@@ -57,8 +57,12 @@ pub struct Stats {
     pub decode_errors: u64,
     /// Callbacks that panicked (caught; the loop went on).
     pub handler_panics: u64,
-    /// Messages missing from a publisher's sequence on typed subscriptions.
+    /// Messages missing from a publisher's sequence on typed subscriptions, summed over them
+    /// (see [`SubscriptionStats::lost`]).
     pub lost: u64,
+    /// Sequence streams started on typed subscriptions, summed over them (see
+    /// [`SubscriptionStats::sequence_streams`]).
+    pub sequence_streams: u64,
 }
 
 #[derive(Default)]
@@ -69,6 +73,7 @@ struct Counters {
     decode_errors: AtomicU64,
     handler_panics: AtomicU64,
     lost: AtomicU64,
+    sequence_streams: AtomicU64,
 }
 
 impl Counters {
@@ -80,6 +85,7 @@ impl Counters {
             decode_errors: self.decode_errors.load(Relaxed),
             handler_panics: self.handler_panics.load(Relaxed),
             lost: self.lost.load(Relaxed),
+            sequence_streams: self.sequence_streams.load(Relaxed),
         }
     }
 }
@@ -231,9 +237,21 @@ pub struct SubscriptionStats {
     pub decode_errors: u64,
     /// Callback panics caught.
     pub handler_panics: u64,
-    /// Messages missing from the publisher's sequence (typed subscriptions of types with a
-    /// sequence number): queue overflow, kernel drops, lost fragments.
+    /// Messages lost before they reached this subscription (queue overflow, kernel drops, lost
+    /// fragments), told by the gaps in their publishers' sequence numbers; typed subscriptions
+    /// of types with a sequence number only.
+    ///
+    /// Per channel, each arriving number is matched to the publisher whose last number it
+    /// follows most closely, by at most [`SequenceTracker::MAX_GAP`]` + 1`; the numbers it
+    /// skipped count here. A number that follows none (another publisher, a restart, a log
+    /// replay, a duplicate, a late message, a longer jump) counts as a new stream in
+    /// [`sequence_streams`](Self::sequence_streams) and nothing lost. [`SequenceTracker`] has
+    /// the details.
     pub lost: u64,
+    /// Sequence streams started: one per channel for its first numbered message, plus one for
+    /// every number that followed no stream (see [`lost`](Self::lost)). More than one per
+    /// channel means several publishers, a restart or a replay, or a jump too long to count.
+    pub sequence_streams: u64,
 }
 
 #[derive(Default)]
@@ -243,6 +261,7 @@ struct SubCounters {
     decode_errors: AtomicU64,
     handler_panics: AtomicU64,
     lost: AtomicU64,
+    sequence_streams: AtomicU64,
 }
 
 type RawHandler = Box<dyn FnMut(&RecvInfo<'_>, &[u8]) -> Outcome + Send>;
@@ -341,6 +360,7 @@ impl Subscription {
             decode_errors: c.decode_errors.load(Relaxed),
             handler_panics: c.handler_panics.load(Relaxed),
             lost: c.lost.load(Relaxed),
+            sequence_streams: c.sequence_streams.load(Relaxed),
         }
     }
 
@@ -416,6 +436,10 @@ impl Lcm {
     ///
     /// Supported providers are those of the linked liblcm: `udpm://ADDR:PORT?ttl=N&recv_buf_size=N`,
     /// `mpudpm://…`, `memq://`, `file://PATH?mode=r|w|a&speed=S`, `tcpq://HOST:PORT`.
+    ///
+    /// A `tcpq://` server that cannot be reached is an [`Error::Connect`] (an older liblcm, such
+    /// as Debian's 1.3, creates an instance without a descriptor, which aborts the process when
+    /// waited on).
     pub fn new(url: &str) -> Result<Lcm> {
         let url = if url.is_empty() {
             default_url()
@@ -423,9 +447,29 @@ impl Lcm {
             url.to_owned()
         };
         let curl = CString::new(url.as_str()).map_err(|_| Error::Create { url: url.clone() })?;
+        // liblcm's tcpq provider fails (1.5.3) or stays without a socket (1.3) when it cannot
+        // connect; both are one error here. Other providers are not asked for their
+        // descriptor: udpm's lcm_get_fileno would set up receiving, with its self-test.
+        let tcpq = url
+            .split_once("://")
+            .is_some_and(|(scheme, _)| scheme == "tcpq");
+        let failed = || {
+            let url = url.clone();
+            if tcpq {
+                Error::Connect { url }
+            } else {
+                Error::Create { url }
+            }
+        };
         // SAFETY: curl is a valid C string; lcm_create returns NULL on failure.
         let ptr = unsafe { lcm_sys::lcm_create(curl.as_ptr()) };
-        let ptr = NonNull::new(ptr).ok_or_else(|| Error::Create { url: url.clone() })?;
+        let ptr = NonNull::new(ptr).ok_or_else(failed)?;
+        // SAFETY: the pointer came from lcm_create and is live.
+        if tcpq && unsafe { lcm_sys::lcm_get_fileno(ptr.as_ptr()) } < 0 {
+            // SAFETY: nothing else holds the pointer; it is not used again.
+            unsafe { lcm_sys::lcm_destroy(ptr.as_ptr()) };
+            return Err(failed());
+        }
         let shared = Arc::new(Shared {
             ptr,
             url,
@@ -538,8 +582,8 @@ impl Lcm {
     /// Subscribes `handler` to decoded messages of type `M` on channels matching `pattern`.
     ///
     /// Messages that do not decode (wrong fingerprint, malformed) are counted, logged, and not
-    /// passed to the handler. For types carrying a sequence number, gaps are counted as lost,
-    /// per channel.
+    /// passed to the handler. For types carrying a sequence number, gaps are counted as lost
+    /// per channel and publisher, as [`SubscriptionStats::lost`] describes.
     pub fn subscribe<M, F>(&self, pattern: &str, mut handler: F) -> Result<Subscription>
     where
         M: Message + 'static,
@@ -559,11 +603,22 @@ impl Lcm {
                             Some(t) => t,
                             None => trackers.entry(info.channel.to_owned()).or_default(),
                         };
+                        let streams = tracker.streams();
                         let gap = tracker.observe(seq);
                         if gap > 0 {
                             sub_counters.lost.fetch_add(gap, Relaxed);
                             shared.counters.lost.fetch_add(gap, Relaxed);
                             tracing::debug!(channel = info.channel, gap, "messages lost");
+                        } else if tracker.streams() != streams {
+                            sub_counters.sequence_streams.fetch_add(1, Relaxed);
+                            shared.counters.sequence_streams.fetch_add(1, Relaxed);
+                            if streams > 0 {
+                                tracing::debug!(
+                                    channel = info.channel,
+                                    sequence = seq,
+                                    "a new sequence stream: another publisher, a restart or a replay"
+                                );
+                            }
                         }
                     }
                     handler(info, msg);
@@ -622,7 +677,15 @@ impl Lcm {
 
     /// Waits up to `timeout` for one message and dispatches it; `Ok(false)` on timeout.
     /// Sub-millisecond timeouts are rounded up to 1 ms (liblcm's resolution); zero polls.
+    ///
+    /// [`Error::NoDescriptor`] when the instance has nothing to wait on (see [`Lcm::fileno`]).
     pub fn handle_timeout(&self, timeout: Duration) -> Result<bool> {
+        // liblcm would put the descriptor in an fd_set, and glibc aborts on -1.
+        if self.fileno() < 0 {
+            return Err(Error::NoDescriptor {
+                url: self.url().to_owned(),
+            });
+        }
         let mut ms = timeout.as_millis().min(i32::MAX as u128) as i32;
         if ms == 0 && !timeout.is_zero() {
             ms = 1;
@@ -650,23 +713,48 @@ impl Lcm {
 
     /// The file descriptor that is readable while messages wait; for `poll`/`epoll` loops.
     /// When it is readable, [`Lcm::handle`] will not block.
+    ///
+    /// -1 when the instance has none: a `tcpq://` instance whose server connection broke
+    /// (liblcm reconnects in [`Lcm::handle`] and publishes, with a new descriptor), or a
+    /// `udpm://` instance that could not set up receiving.
     pub fn fileno(&self) -> RawFd {
         // SAFETY: the pointer is live.
         unsafe { lcm_sys::lcm_get_fileno(self.publisher.shared.ptr.as_ptr()) }
     }
+
+    /// The descriptor of [`Lcm::fileno`], borrowed; [`Error::NoDescriptor`] when there is none.
+    ///
+    /// On `tcpq://`, liblcm closes the descriptor when the connection breaks inside
+    /// [`Lcm::handle`] or a publish: do not keep the borrow across those calls.
+    pub fn try_fd(&self) -> Result<BorrowedFd<'_>> {
+        match self.fileno() {
+            fd if fd >= 0 => {
+                // SAFETY: fd is open. liblcm closes it when the instance is destroyed, which this
+                // borrow of `self` outlasts, or (tcpq:// only) when its connection breaks, which
+                // the doc above tells callers to keep the borrow clear of.
+                Ok(unsafe { BorrowedFd::borrow_raw(fd) })
+            }
+            _ => Err(Error::NoDescriptor {
+                url: self.url().to_owned(),
+            }),
+        }
+    }
 }
 
 impl AsRawFd for Lcm {
+    /// [`Lcm::fileno`]: -1 when the instance has no descriptor.
     fn as_raw_fd(&self) -> RawFd {
         self.fileno()
     }
 }
 
 impl AsFd for Lcm {
+    /// [`Lcm::try_fd`], for instances known to have a descriptor.
+    ///
+    /// # Panics
+    /// When the instance has none (see [`Lcm::fileno`]).
     fn as_fd(&self) -> BorrowedFd<'_> {
-        // SAFETY: liblcm owns the descriptor for the lifetime of the instance, which outlives
-        // the borrow of `self`.
-        unsafe { BorrowedFd::borrow_raw(self.fileno()) }
+        self.try_fd().unwrap_or_else(|e| panic!("{e}"))
     }
 }
 

@@ -20,6 +20,16 @@
 //! A panic in a callback is caught before it can unwind into C, logged, counted in
 //! [`Stats::handler_panics`] and the loop goes on. A message that does not decode on a typed
 //! subscription is logged and counted in [`Stats::decode_errors`].
+//!
+//! # Lost messages
+//! liblcm drops messages without a word (a full subscription queue, a full kernel buffer, a
+//! lost fragment). For message types that carry a sequence number, typed subscriptions count
+//! the gaps: [`SubscriptionStats::lost`] (and [`Stats::lost`], its sum over an instance) is the
+//! number of sequence numbers skipped within one publisher's stream on one channel. liblcm does
+//! not say who sent a message, so publishers are told apart by their numbers
+//! ([`SequenceTracker`]): a number that follows no known stream closely (another publisher, a
+//! restart, a log replay, a jump of more than [`SequenceTracker::MAX_GAP`]) starts a stream,
+//! counted in [`SubscriptionStats::sequence_streams`], and nothing is counted lost for it.
 
 mod codec;
 mod error;

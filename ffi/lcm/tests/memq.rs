@@ -182,6 +182,46 @@ fn sequence_gaps_are_counted_as_lost() {
     assert_eq!(lcm.stats().lost, 5);
 }
 
+fn publish_seqs(lcm: &Lcm, channel: &str, seqs: impl IntoIterator<Item = i64>) {
+    for seq in seqs {
+        let text = String::new();
+        lcm.publish(channel, &Counter { seq, text }).unwrap();
+    }
+}
+
+#[test]
+fn a_sequence_jump_beyond_i64_is_delivered_not_a_handler_panic() {
+    let lcm = Lcm::new("memq://").unwrap();
+    let sub = lcm.subscribe("J", |_, _m: Counter| {}).unwrap();
+    publish_seqs(&lcm, "J", [i64::MIN, i64::MAX, -1, i64::MAX / 2]);
+    lcm.handle_pending().unwrap();
+    let st = sub.stats();
+    assert_eq!(
+        (st.received, st.handler_panics, st.lost),
+        (4, 0, 0),
+        "{st:?}"
+    );
+    assert_eq!(st.sequence_streams, 4);
+}
+
+#[test]
+fn a_log_replay_beside_live_traffic_is_not_counted_lost() {
+    let lcm = Lcm::new("memq://").unwrap();
+    let sub = lcm.subscribe("LIVE", |_, _m: Counter| {}).unwrap();
+    sub.set_queue_capacity(0).unwrap();
+    publish_seqs(&lcm, "LIVE", 701_000..701_100);
+    // A replay from 0 joins the live publisher; then a third starts at 0 (a restarted process),
+    // and each of the three skips some numbers.
+    publish_seqs(&lcm, "LIVE", (0..50).flat_map(|i| [i, 701_100 + i]));
+    publish_seqs(&lcm, "LIVE", [0, 52, 2, 701_152, 3, 53]);
+    lcm.handle_pending().unwrap();
+    let st = sub.stats();
+    assert_eq!(st.lost, 2 + 2 + 1, "{st:?}");
+    assert_eq!(st.sequence_streams, 3);
+    assert_eq!(lcm.stats().lost, st.lost);
+    assert_eq!(lcm.stats().sequence_streams, 3);
+}
+
 #[test]
 fn dropping_a_subscription_inside_its_callback_is_deferred_safely() {
     let lcm = Lcm::new("memq://").unwrap();
