@@ -162,7 +162,7 @@ fn schedule(model: &str, n: u8) -> Vec<(usize, usize)> {
 fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> (f64, f64, f64, u64) {
     let m = models::by_name(model).unwrap();
     let cfg = BridgeConfig {
-        port: "bench".into(),
+        port: stride_serial::LineSpec::Device("bench".into()),
         baud,
         read: ReadMode::Auto,
         servo: (1..=n)

@@ -4,6 +4,11 @@
 
 use stride_lcmtypes::stride::{ArduinoJointStateT, HeaderT, ImuT, JointCommandT, JointStateT};
 use stride_link::{JointCommand, JointState, Message, Mode};
+use stride_serial::LineSpec;
+
+mod app;
+
+pub use app::{ArduinoApp, Cli};
 
 /// One joint of the board.
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
@@ -39,7 +44,7 @@ impl JointConfig {
 pub struct LinkConfig {
     /// Serial device of the board (prefer a `/dev/serial/by-id/...` name: it is the same after
     /// the board is plugged back in), or `sim` for a fake board in this process.
-    pub port: String,
+    pub port: LineSpec,
     /// Baud rate.
     pub baud: u32,
     /// Name of the board (in states and logs).
@@ -70,7 +75,7 @@ pub struct LinkConfig {
 impl Default for LinkConfig {
     fn default() -> Self {
         LinkConfig {
-            port: "sim".into(),
+            port: LineSpec::Sim,
             baud: 115_200,
             board: "board".into(),
             rate_hz: 100.0,
@@ -288,7 +293,7 @@ pub fn state_msgs(
     let faults: Vec<i8> = picked.iter().map(|(_, s)| (s.flags >> 1) as i8).collect();
     let arduino = ArduinoJointStateT {
         header: header.clone(),
-        port: cfg.port.clone(),
+        port: cfg.port.to_string(),
         firmware: firmware.to_owned(),
         num_joints: n as i32,
         joint_names: names.clone(),

@@ -8,14 +8,18 @@ use std::time::{Duration, Instant};
 
 use stride_dynamixel_chain::{Chain, ChainConfig, ReadMode, ServoConfig};
 use stride_lcmtypes::stride::{DynamixelStateT, HeaderT, JointCommandT, JointStateT, NodeStatusT};
-use stride_serial::Transport;
+use stride_serial::{LineSpec, Transport};
+
+pub mod app;
+
+pub use app::{open_line, Cli, DynamixelApp};
 
 /// The bridge's TOML configuration.
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BridgeConfig {
     /// Serial device (e.g. `/dev/ttyUSB0`), or `sim` for fake servos in this process.
-    pub port: String,
+    pub port: LineSpec,
     /// Baud rate of the line (the servos' baud rate item must match).
     pub baud: u32,
     /// Cycles per second (a goal write and a read of every servo each).
@@ -50,7 +54,7 @@ pub struct BridgeConfig {
 impl Default for BridgeConfig {
     fn default() -> Self {
         BridgeConfig {
-            port: "sim".into(),
+            port: LineSpec::Sim,
             baud: 1_000_000,
             rate_hz: 50.0,
             return_delay_us: 0,

@@ -4,9 +4,13 @@
 //! a bus failure or a reset brings the drives up again), and what it reports, in its health
 //! and in `stride.trajectory_status_t`. The CANopen work is `stride-elmo`'s.
 
+mod app;
+
+pub use app::{open_bus, Cli, ElmoApp};
+
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use stride_canbus::CanBus;
+use stride_canbus::{BusSpec, CanBus};
 use stride_elmo::{Event, JointConfig, Master, MasterConfig, Start, Trajectory};
 use stride_lcmtypes::stride::{
     HeaderT, JointStateT, JointTrajectoryT, NodeStatusT, TrajectoryStatusT,
@@ -18,7 +22,7 @@ use stride_lcmtypes::stride::{
 pub struct BridgeConfig {
     /// `sim` (fake drives in this process), `slcan:PATH` (a USB2CAN dongle), `lcm:NAME` (a
     /// CAN bus behind a stride-usb2can gateway) or `socketcan:IFACE` (with the feature).
-    pub bus: String,
+    pub bus: BusSpec,
     /// CAN bit rate.
     pub bitrate: u32,
     /// Channel of incoming `stride.joint_trajectory_t`.
@@ -62,7 +66,7 @@ pub struct BridgeConfig {
 impl Default for BridgeConfig {
     fn default() -> Self {
         BridgeConfig {
-            bus: "sim".into(),
+            bus: BusSpec::Sim,
             bitrate: 1_000_000,
             trajectory_channel: "JOINT_TRAJECTORY".into(),
             state_channel: "JOINT_STATE".into(),

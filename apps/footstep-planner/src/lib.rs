@@ -5,6 +5,7 @@
 //! with a [`plan::Plan`]: its status, its path and steps, and what the search cost. [`node`] is
 //! the logic of the LCM node (`stride-footstep-planner`).
 
+pub mod app;
 pub mod archie;
 pub mod geom;
 pub mod grid;

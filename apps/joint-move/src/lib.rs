@@ -1,4 +1,9 @@
-//! Smooth joint moves: a minimum-jerk profile sampled as a PVT trajectory.
+//! Smooth joint moves: a minimum-jerk profile sampled as a PVT trajectory, and the
+//! `stride-joint-move` client that sends one and waits for the joints to arrive ([`Mover`]).
+
+mod app;
+
+pub use app::{parse_moves, Cli, Mover};
 
 use stride_lcmtypes::stride::{HeaderT, JointTrajectoryT};
 

@@ -1,39 +1,31 @@
 //! The runtime shared by every stride executable.
 //!
 //! It gives each app the same command-line flags ([`NodeArgs`]: `--lcm-url`, `--config`,
-//! `--log-level`, `--name`), `tracing` logs, TOML configuration ([`load_config`]), a
-//! [`stride.node_status_t`](stride_lcmtypes::stride::NodeStatusT) heartbeat published at 1 Hz
-//! on `STRIDE_STATUS` (and at once when the app's health changes), queues of incoming messages
-//! and a fixed-rate loop for the main thread ([`Node::queue`], [`Ticker`]), and a clean
-//! shutdown on SIGINT/SIGTERM, so that an app's `main.rs` only wires its logic to the bus:
-//!
-//! ```no_run
-//! use clap::Parser;
-//! #[derive(Parser)]
-//! struct Cli {
-//!     #[command(flatten)]
-//!     node: stride_node::NodeArgs,
-//! }
-//! fn main() -> anyhow::Result<()> {
-//!     let cli = Cli::parse();
-//!     let node = stride_node::Node::start("my-app", &cli.node)?;
-//!     let _sub = node.lcm().subscribe_raw("POSE", |_, _| {})?;
-//!     node.spin()?; // handles messages until SIGINT/SIGTERM
-//!     Ok(())
-//! }
-//! ```
+//! `--log-level`, `--name`), `tracing` logs, TOML configuration with a typed check
+//! ([`AppConfig`]), a [`stride.node_status_t`](stride_lcmtypes::stride::NodeStatusT) heartbeat
+//! published at 1 Hz on `STRIDE_STATUS` (and at once when the app's health changes), queues of
+//! incoming messages ([`Node::queue`]), the loop that drives an app's state machine ([`Tick`],
+//! [`Node::run`]) and a clean shutdown on SIGINT/SIGTERM or a closed stdout. [`main`] (and
+//! [`tool`] for programs that do not join the bus) turns the whole run into an exit status,
+//! errors in one line. An app's `main.rs` only wires its lib.rs to the frame (the example at
+//! [`main`]).
 
+mod app;
 mod config;
 mod heartbeat;
 mod stamp;
 mod throttle;
 
+pub use app::{
+    app_config, check_log_filter, is_broken_pipe, main, stdout_closed, tool, AppConfig, ConfigUse,
+    Launch, NoConfig, NodeCli, Period, Tick,
+};
 pub use config::load_config;
 pub use stamp::Stamper;
 pub use throttle::{Note, Throttle};
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -125,6 +117,7 @@ pub struct Node {
     health: Arc<Mutex<Health>>,
     heartbeat: Option<heartbeat::Heartbeat>,
     started: Instant,
+    exit: AtomicU8,
 }
 
 impl std::fmt::Debug for Node {
@@ -165,6 +158,7 @@ impl Node {
             health,
             heartbeat: Some(heartbeat),
             started,
+            exit: AtomicU8::new(0),
         })
     }
 
@@ -201,6 +195,14 @@ impl Node {
         if let Some(hb) = &self.heartbeat {
             hb.poke();
         }
+    }
+
+    /// The state and detail the heartbeat reports.
+    pub fn health(&self) -> Health {
+        self.health
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone()
     }
 
     /// Marks the node running (the state most apps report after start-up).

@@ -11,6 +11,7 @@ use stride_footstep_planner::plan::{Plan, Status};
 use stride_footstep_planner::planner::{self, scene_request, Which};
 use stride_footstep_planner::scene::Scene;
 use stride_footstep_planner::svg;
+use stride_node::outln;
 
 use crate::pct;
 
@@ -129,9 +130,9 @@ fn ms(us: f64) -> String {
 }
 
 /// The side-by-side table, and the bars' verdicts.
-pub fn print_table(rows: &mut [Row], repeats: usize, budget: Duration) {
-    println!("| scene | thesis: status | cost | steps | expansions | preparation | p50 / p99 | improved: status | cost | / thesis | steps | expansions to first plan | / thesis | first plan p50 / p99 | bound at the budget | expansions | p50 / p99 | the thesis reports |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+pub fn print_table(rows: &mut [Row], repeats: usize, budget: Duration) -> std::io::Result<()> {
+    outln!("| scene | thesis: status | cost | steps | expansions | preparation | p50 / p99 | improved: status | cost | / thesis | steps | expansions to first plan | / thesis | first plan p50 / p99 | bound at the budget | expansions | p50 / p99 | the thesis reports |")?;
+    outln!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")?;
     let (mut worse, mut over_half, mut slow_p50, mut slow_p99, mut fails) = (0, 0, 0, 0, 0);
     let mut worst_first = (0.0f64, 0.0f64);
     for pair in rows.chunks_mut(2) {
@@ -178,7 +179,7 @@ pub fn print_table(rows: &mut [Row], repeats: usize, budget: Duration) {
                 "—".into()
             }
         };
-        println!(
+        outln!(
             "| {} | {} | {} | {} | {} | {} | {} / {} | {} | {} | {} | {} | {} | {} | {} / {} | {} | {} | {} / {} | {} |",
             t.scene,
             t.plan.status.name(),
@@ -201,10 +202,10 @@ pub fn print_table(rows: &mut [Row], repeats: usize, budget: Duration) {
             ms(pct(&mut i.total, 50.0)),
             ms(pct(&mut i.total, 99.0)),
             t.reference,
-        );
+        )?;
     }
-    println!();
-    println!(
+    outln!()?;
+    outln!(
         "{} scenes, {repeats} runs each, budget {} ms: improved failures where a path exists {fails}; \
          dearer than the thesis's plan by over 0.5 % {worse}; first plan needing over half the \
          thesis's expansions {over_half}; first plan p50 over 10 ms {slow_p50} (worst {}), p99 \
@@ -213,5 +214,6 @@ pub fn print_table(rows: &mut [Row], repeats: usize, budget: Duration) {
         budget.as_millis(),
         ms(worst_first.0),
         ms(worst_first.1),
-    );
+    )?;
+    Ok(())
 }

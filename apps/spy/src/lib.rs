@@ -1,7 +1,11 @@
-//! The logic of `stride-spy`: channel statistics, messages as JSON, log export.
+//! The logic of `stride-spy`: channel statistics, messages as JSON, log export, and its
+//! command line ([`Cli`], [`run`]).
 
+mod app;
 pub mod export;
 pub mod summary;
+
+pub use app::{run, Cli};
 
 use serde_json::{json, Value};
 

@@ -2,6 +2,10 @@
 //! the wire; a full queue refuses new ones, a frame past its age is dropped, not sent late)
 //! and the gateway's counters, published as `stride.can_bus_status_t`.
 
+mod app;
+
+pub use app::{Cli, GatewayApp};
+
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 

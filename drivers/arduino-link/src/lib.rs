@@ -49,6 +49,22 @@ pub mod fault {
     pub const DRIVER: u8 = 8;
     /// Frames lost on the link.
     pub const LINK: u8 = 16;
+
+    /// The faults set in `bits`, named, comma-separated.
+    pub fn names(bits: u8) -> String {
+        [
+            (OVER_CURRENT, "over-current"),
+            (OVER_TEMPERATURE, "over-temperature"),
+            (WATCHDOG, "watchdog"),
+            (DRIVER, "driver"),
+            (LINK, "link"),
+        ]
+        .iter()
+        .filter(|(b, _)| bits & b != 0)
+        .map(|(_, n)| *n)
+        .collect::<Vec<_>>()
+        .join(", ")
+    }
 }
 
 /// NACK reasons.

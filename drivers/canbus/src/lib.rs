@@ -8,6 +8,9 @@
 pub mod slcan;
 #[cfg(feature = "socketcan")]
 pub mod socketcan;
+mod spec;
+
+pub use spec::{BusSpec, BUS_FORMS};
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};

@@ -5,3 +5,6 @@ pub mod dongle;
 pub mod due;
 pub mod dynamixel;
 pub mod elmo;
+mod sim;
+
+pub use sim::Sim;

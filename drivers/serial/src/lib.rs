@@ -219,3 +219,52 @@ mod tests {
         );
     }
 }
+
+/// A serial line by name, as configuration gives it: `sim` (a fake device on a pty in this
+/// process) or the path of a device (`/dev/ttyUSB0`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum LineSpec {
+    /// A fake device on a pty, made by the app.
+    Sim,
+    /// A serial device.
+    Device(String),
+}
+
+impl std::str::FromStr for LineSpec {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<LineSpec, String> {
+        match s {
+            "" => Err("the port is empty: give \"sim\" or a device such as /dev/ttyUSB0".into()),
+            "sim" => Ok(LineSpec::Sim),
+            path => Ok(LineSpec::Device(path.to_owned())),
+        }
+    }
+}
+
+impl std::fmt::Display for LineSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LineSpec::Sim => f.write_str("sim"),
+            LineSpec::Device(p) => f.write_str(p),
+        }
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for LineSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<LineSpec, D::Error> {
+        String::deserialize(d)?
+            .parse()
+            .map_err(serde::de::Error::custom)
+    }
+}
+
+impl LineSpec {
+    /// Opens the device at `baud` (a `sim` line is made by its app, with its fake).
+    pub fn open_device(&self, baud: u32) -> io::Result<Port<serialport::TTYPort>> {
+        match self {
+            LineSpec::Device(path) => open(path, baud),
+            LineSpec::Sim => Err(io::Error::other("the sim line is not a device")),
+        }
+    }
+}

@@ -1,0 +1,308 @@
+//! The link as an app: its command line and its loop, a state machine that connects (again
+//! when the port comes back), feeds the board's watchdog and turns its frames into messages.
+
+use std::time::{Duration, Instant};
+
+use stride_fakes::due::{DueConfig, DueLevers, FakeDue};
+use stride_fakes::Sim;
+use stride_lcmtypes::stride::{JointCommandT, NodeStatusT};
+use stride_link::{JointCommand, Message, Mode};
+use stride_link_host::Session;
+use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
+use stride_serial::{LineSpec, Paced, Transport};
+
+use crate::{imu_msg, state_msgs, Attitude, LinkConfig, ACCEL_COUNTS_PER_G, GYRO_COUNTS_PER_RAD_S};
+
+/// Drive one Arduino Due joint-controller board (a leg of Archie) from LCM.
+///
+/// Joint commands (stride.joint_command_t: duty, position, brake or disable) are checked
+/// against the configured limits (a command past one is refused whole and reported, never
+/// clipped) and sent to the board; heartbeats keep the board's watchdog fed when there are
+/// none. The board's joint states go out as stride.arduino_joint_state_t and
+/// stride.joint_state_t, its MPU-6050 samples as stride.imu_t with the hip's attitude from a
+/// complementary filter, its faults in the node status. At connect it checks the link version
+/// in a handshake, waiting out the reset that opening the port causes; when the port vanishes
+/// (the cable pulled) it says so, reopens it when it is back, and handshakes again. A joint
+/// above current_limit_a is braked. On shutdown every joint is braked. See
+/// config/robots/archie-arduino-left-leg.toml.
+#[derive(clap::Parser, Debug)]
+#[command(name = "stride-arduino-link", version, about, long_about)]
+pub struct Cli {
+    #[command(flatten)]
+    node: NodeArgs,
+}
+
+stride_node::node_cli!(Cli);
+
+impl AppConfig for LinkConfig {
+    const USE: ConfigUse = ConfigUse::Required(
+        "the board's port and joints; see config/robots/, e.g. config/robots/archie-arduino-left-leg.toml",
+    );
+    fn check(&self) -> Result<(), String> {
+        LinkConfig::check(self)
+    }
+}
+
+/// The running link: connected to the board or trying to be.
+pub struct ArduinoApp {
+    // Dropped in this order: the session (its line) before the fake board.
+    session: Option<Session<Box<dyn Transport>>>,
+    sim: Option<Sim<FakeDue>>,
+    _sub: lcm::Subscription,
+    rx: std::sync::mpsc::Receiver<JointCommandT>,
+    cfg: LinkConfig,
+    stamper: Stamper,
+    period: Period,
+    next_try: Instant,
+    last_sent: Instant,
+    last_heard: Instant,
+    attitude: Attitude,
+    last_imu: Option<u32>,
+    imu_raw: ([i16; 3], [i16; 3]),
+    rejected: u64,
+    braked_by_host: [bool; 8],
+    /// The last reason the board could not be reached, said once on the console.
+    last_failure: String,
+}
+
+impl ArduinoApp {
+    /// Subscribes; the board is connected on the first tick.
+    pub fn start(node: &Node, cfg: LinkConfig) -> anyhow::Result<ArduinoApp> {
+        let (sub, rx) = node.queue::<JointCommandT>(&cfg.command_channel)?;
+        node.set_health(NodeStatusT::STATE_STARTING, "connecting to the board");
+        let now = Instant::now();
+        Ok(ArduinoApp {
+            session: None,
+            sim: None,
+            _sub: sub,
+            rx,
+            stamper: Stamper::new(&cfg.board),
+            period: Period::hz(cfg.rate_hz),
+            next_try: now,
+            last_sent: now,
+            last_heard: now,
+            attitude: Attitude::new(cfg.imu_time_constant_s),
+            last_imu: None,
+            imu_raw: ([0; 3], [0; 3]),
+            rejected: 0,
+            braked_by_host: [false; 8],
+            last_failure: String::new(),
+            cfg,
+        })
+    }
+
+    /// Opens the board's line: the serial device, or a fake board on a pty in this process.
+    fn open(&mut self) -> std::io::Result<Box<dyn Transport>> {
+        if self.cfg.port == LineSpec::Sim {
+            let (host, dev) = stride_serial::pty_pair(self.cfg.baud)?;
+            self.session = None;
+            let mut sim = Sim::new();
+            let board = FakeDue::new(DueConfig::default());
+            sim.add(board.spawn(Paced::new(dev), DueLevers::default(), sim.flag()));
+            self.sim = Some(sim);
+            return Ok(Box::new(host));
+        }
+        Ok(Box::new(self.cfg.port.open_device(self.cfg.baud)?))
+    }
+
+    fn unreachable(&mut self, node: &Node, why: String) {
+        let detail = format!("{}: {why}; retrying", self.cfg.port);
+        if why != self.last_failure {
+            tracing::warn!("{detail} every {} ms", self.cfg.reconnect_ms);
+            self.last_failure = why;
+        }
+        node.set_health(NodeStatusT::STATE_FAULT, detail);
+    }
+
+    fn connect(&mut self, node: &Node, now: Instant) {
+        while self.rx.try_recv().is_ok() {
+            self.rejected += 1;
+        }
+        if now < self.next_try {
+            return;
+        }
+        self.next_try = now + Duration::from_millis(self.cfg.reconnect_ms);
+        let mut s = match self.open() {
+            Ok(line) => Session::new(line),
+            Err(e) => return self.unreachable(node, e.to_string()),
+        };
+        let handshake = Duration::from_millis(self.cfg.handshake_timeout_ms);
+        match s.handshake(handshake, Duration::from_millis(250)) {
+            Ok(b) => {
+                tracing::info!(
+                    firmware = b.firmware.as_str(),
+                    joints = b.joints,
+                    "board connected"
+                );
+                self.session = Some(s);
+                self.last_heard = Instant::now();
+                self.attitude = Attitude::new(self.cfg.imu_time_constant_s);
+                self.last_imu = None;
+                self.last_failure.clear();
+                node.set_running();
+            }
+            Err(e) => self.unreachable(node, e.to_string()),
+        }
+    }
+
+    /// One turn with the board: commands (or a heartbeat) out, its frames in. An I/O error
+    /// loses the session.
+    fn serve(&mut self, node: &Node, now: Instant) -> Result<(), std::io::Error> {
+        let Some(s) = self.session.as_mut() else {
+            return Ok(());
+        };
+        // Commands, checked; heartbeats when there are none.
+        while let Ok(c) = self.rx.try_recv() {
+            match self.cfg.to_board(&c) {
+                Ok(joints) => {
+                    s.send(&Message::Command(joints))?;
+                    self.last_sent = now;
+                }
+                Err(e) => {
+                    self.rejected += 1;
+                    tracing::warn!(error = %e, rejected = self.rejected, "command rejected");
+                    node.set_health(
+                        NodeStatusT::STATE_DEGRADED,
+                        format!("command rejected: {e}"),
+                    );
+                }
+            }
+        }
+        if now.saturating_duration_since(self.last_sent) >= Duration::from_millis(50) {
+            s.send(&Message::Heartbeat(node.uptime().as_millis() as u32))?;
+            self.last_sent = now;
+        }
+        // What the board sent.
+        let msgs = s.receive(Instant::now() + Duration::from_millis(1))?;
+        if !msgs.is_empty() {
+            self.last_heard = now;
+        } else if now.saturating_duration_since(self.last_heard) > Duration::from_millis(500) {
+            // The board streams its state at 100 Hz: half a second of silence is a lost link.
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                "the board has been silent for 500 ms",
+            ));
+        }
+        let firmware = s.board().map(|b| b.firmware.clone()).unwrap_or_default();
+        let lost = (s.stats().lost + s.stats().bad) as i32;
+        let mut brake: Vec<JointCommand> = Vec::new();
+        let lcm = node.lcm();
+        for m in msgs {
+            match m {
+                Message::State { joints, .. } => {
+                    let header = self.stamper.stamp();
+                    let (a, j) =
+                        state_msgs(&self.cfg, header, &firmware, &joints, self.imu_raw, lost);
+                    let _ = lcm.publish(&self.cfg.state_channel, &a);
+                    let _ = lcm.publish(&self.cfg.joint_state_channel, &j);
+                    // The host's own current limit.
+                    for jc in &self.cfg.joint {
+                        let i = jc.index as usize;
+                        let Some(st) = joints.get(i) else {
+                            continue;
+                        };
+                        let over = st.current as f64 / 1000.0 > self.cfg.current_limit_a;
+                        if over && !self.braked_by_host[i] {
+                            self.braked_by_host[i] = true;
+                            brake.push(JointCommand {
+                                joint: jc.index,
+                                mode: Mode::Brake,
+                                value: 0,
+                            });
+                            node.set_health(
+                                NodeStatusT::STATE_DEGRADED,
+                                format!("{}: {} mA over the limit: braked", jc.name, st.current),
+                            );
+                        } else if !over {
+                            self.braked_by_host[i] = false;
+                        }
+                    }
+                }
+                Message::Imu {
+                    t_us,
+                    accel,
+                    temperature,
+                    gyro,
+                } => {
+                    let dt = self
+                        .last_imu
+                        .map_or(0.0, |t| t_us.wrapping_sub(t) as f64 * 1e-6);
+                    self.last_imu = Some(t_us);
+                    self.attitude.update(
+                        accel.map(|a| a as f64 / ACCEL_COUNTS_PER_G),
+                        gyro.map(|g| g as f64 / GYRO_COUNTS_PER_RAD_S),
+                        dt,
+                    );
+                    self.imu_raw = (accel, gyro);
+                    let msg = imu_msg(
+                        self.stamper.stamp(),
+                        accel,
+                        temperature,
+                        gyro,
+                        &self.attitude,
+                    );
+                    let _ = lcm.publish(&self.cfg.imu_channel, &msg);
+                }
+                Message::Fault {
+                    joint,
+                    bits,
+                    detail,
+                } => {
+                    let who = self
+                        .cfg
+                        .joint
+                        .iter()
+                        .find(|j| j.index == joint)
+                        .map_or_else(|| "board".to_string(), |j| j.name.clone());
+                    let what = stride_link::fault::names(bits);
+                    tracing::warn!(
+                        who = who.as_str(),
+                        what = what.as_str(),
+                        detail,
+                        "board fault"
+                    );
+                    node.set_health(
+                        NodeStatusT::STATE_DEGRADED,
+                        format!("{who}: fault: {what} ({detail})"),
+                    );
+                }
+                Message::Nack { seq, reason } => {
+                    tracing::warn!(seq, reason, "the board refused a frame");
+                }
+                _ => {}
+            }
+        }
+        if !brake.is_empty() {
+            s.send(&Message::Command(brake))?;
+        }
+        Ok(())
+    }
+}
+
+impl Tick for ArduinoApp {
+    const WAKE_ON_MESSAGE: bool = false;
+
+    fn tick(&mut self, node: &Node, now: Instant) -> anyhow::Result<Instant> {
+        if self.session.is_none() {
+            self.connect(node, now);
+        } else if let Err(e) = self.serve(node, now) {
+            tracing::error!(error = %e, "lost the board; reconnecting");
+            node.set_health(
+                NodeStatusT::STATE_FAULT,
+                format!("{}: {e}; reconnecting", self.cfg.port),
+            );
+            self.session = None;
+            self.next_try = Instant::now() + Duration::from_millis(self.cfg.reconnect_ms);
+        }
+        Ok(self.period.next(now))
+    }
+
+    fn stop(mut self, _node: &Node) -> anyhow::Result<()> {
+        if let Some(s) = self.session.as_mut() {
+            tracing::info!("braking every joint");
+            let _ = s.send(&self.cfg.brake_all());
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,447 @@
+//! The app frame: command line, configuration, node, loop and exit, the same for every app.
+//!
+//! An app's `lib.rs` holds its command line (a clap parser with [`NodeArgs`] flattened in,
+//! made known by [`NodeCli`]), its configuration ([`AppConfig`]: none, optional or required,
+//! with a typed check) and a state machine that implements [`Tick`]; its `main.rs` only wires
+//! them:
+//!
+//! ```no_run
+//! use std::time::{Duration, Instant};
+//! use stride_node::{Launch, NoConfig, Node, NodeArgs, Tick};
+//!
+//! #[derive(clap::Parser)]
+//! struct Cli {
+//!     #[command(flatten)]
+//!     node: NodeArgs,
+//! }
+//! stride_node::node_cli!(Cli);
+//! struct App;
+//! impl Tick for App {
+//!     fn tick(&mut self, _node: &Node, now: Instant) -> anyhow::Result<Instant> {
+//!         Ok(now + Duration::from_millis(100))
+//!     }
+//! }
+//! fn main() -> std::process::ExitCode {
+//!     stride_node::main("my-app", |l: Launch<Cli, NoConfig>| {
+//!         let node = l.start()?;
+//!         node.run(App)
+//!     })
+//! }
+//! ```
+//!
+//! [`main`] parses the command line, refuses an unknown `--log-level`, loads and checks the
+//! configuration (refusing `--config` for an app that takes none, and saying where to find one
+//! for an app that needs one), and turns every error into one line on stderr and exit status 1,
+//! whatever `RUST_BACKTRACE` says. A write to a closed stdout ends the program quietly.
+//! [`Node::run`] drives the [`Tick`] until SIGINT/SIGTERM, [`Node::exit_with`] or a closed
+//! stdout, then lets it stop gracefully.
+
+use std::io::Write;
+use std::path::Path;
+use std::process::ExitCode;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use serde::de::DeserializeOwned;
+
+use crate::{Node, NodeArgs};
+
+/// A command line that carries the common flags.
+pub trait NodeCli: clap::Parser {
+    /// The common flags.
+    fn node_args(&self) -> &NodeArgs;
+}
+
+/// Implements [`NodeCli`] for a clap parser whose common flags are its field `node`.
+#[macro_export]
+macro_rules! node_cli {
+    ($cli:ty) => {
+        impl $crate::NodeCli for $cli {
+            fn node_args(&self) -> &$crate::NodeArgs {
+                &self.node
+            }
+        }
+    };
+}
+
+/// Whether an app reads a configuration file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConfigUse {
+    /// It takes none: `--config` is refused.
+    None,
+    /// Its defaults serve without one.
+    Optional,
+    /// It cannot run without one; the text says where examples are.
+    Required(&'static str),
+}
+
+/// An app's configuration, read from TOML.
+pub trait AppConfig: DeserializeOwned {
+    /// Whether a file is needed.
+    const USE: ConfigUse;
+    /// The defaults, used without a file (only asked for when `USE` is not `Required`).
+    fn defaults() -> Option<Self> {
+        None
+    }
+    /// Checks what types cannot: ranges, consistency, names. The error is one line.
+    fn check(&self) -> Result<(), String> {
+        Ok(())
+    }
+}
+
+/// The configuration of an app that takes none.
+#[derive(Debug, Clone, Copy, Default, serde::Deserialize)]
+pub struct NoConfig {}
+
+impl AppConfig for NoConfig {
+    const USE: ConfigUse = ConfigUse::None;
+    fn defaults() -> Option<Self> {
+        Some(NoConfig {})
+    }
+}
+
+/// Loads `A`'s configuration as `USE` says, and checks it.
+pub fn app_config<A: AppConfig>(path: Option<&Path>) -> anyhow::Result<A> {
+    let cfg = match (A::USE, path) {
+        (ConfigUse::None, Some(p)) => anyhow::bail!(
+            "this program takes no configuration file (--config {})",
+            p.display()
+        ),
+        (ConfigUse::None | ConfigUse::Optional, None) => {
+            A::defaults().context("this program has no default configuration: --config FILE")?
+        }
+        (ConfigUse::Required(hint), None) => {
+            anyhow::bail!("a configuration file is needed: --config FILE ({hint})")
+        }
+        (_, Some(p)) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("reading configuration file {}", p.display()))?;
+            toml::from_str(&text)
+                .map_err(|e| anyhow::anyhow!("{}", e.to_string().trim().replace('\n', " ")))
+                .with_context(|| format!("in configuration file {}", p.display()))?
+        }
+    };
+    cfg.check()
+        .map_err(anyhow::Error::msg)
+        .context(match path {
+            Some(p) => format!("configuration {}", p.display()),
+            None => "default configuration".to_owned(),
+        })?;
+    Ok(cfg)
+}
+
+/// What [`main`] hands the app: its parsed command line and checked configuration.
+#[derive(Debug)]
+pub struct Launch<C, F> {
+    /// The command line.
+    pub cli: C,
+    /// The configuration.
+    pub cfg: F,
+    name: &'static str,
+}
+
+impl<C: NodeCli, F> Launch<C, F> {
+    /// Starts the app's node on the bus.
+    pub fn start(&self) -> anyhow::Result<Node> {
+        Node::start(self.name, self.cli.node_args())
+    }
+
+    /// Starts a node under another default name (a client mode of the app, e.g. a query).
+    pub fn start_as(&self, name: &str) -> anyhow::Result<Node> {
+        Node::start(name, self.cli.node_args())
+    }
+
+    /// Sets up logging only, for a mode that does not join the bus.
+    pub fn logging(&self) {
+        crate::init_logging(&self.cli.node_args().log_level);
+    }
+
+    /// The app's name.
+    pub fn name(&self) -> &'static str {
+        self.name
+    }
+}
+
+/// The whole life of app `name`: parses `C`, loads `F`, runs `body`, and turns its outcome
+/// into the exit status (errors in one line on stderr, a closed stdout quiet).
+pub fn main<C, F>(
+    name: &'static str,
+    body: impl FnOnce(Launch<C, F>) -> anyhow::Result<ExitCode>,
+) -> ExitCode
+where
+    C: NodeCli,
+    F: AppConfig,
+{
+    let cli = C::parse();
+    let outcome = check_log_filter(&cli.node_args().log_level)
+        .and_then(|()| app_config::<F>(cli.node_args().config.as_deref()))
+        .and_then(|cfg| body(Launch { cli, cfg, name }));
+    finish(name, outcome)
+}
+
+/// [`main`] for a tool that takes its own command line and no node: `body` parses nothing
+/// more and runs; errors and a closed stdout are handled as in [`main`].
+pub fn tool<C: clap::Parser>(
+    name: &'static str,
+    body: impl FnOnce(C) -> anyhow::Result<ExitCode>,
+) -> ExitCode {
+    finish(name, body(C::parse()))
+}
+
+/// Refuses a `--log-level` that is no tracing filter (RUST_LOG, when set, is taken instead).
+pub fn check_log_filter(filter: &str) -> anyhow::Result<()> {
+    if std::env::var_os("RUST_LOG").is_some() {
+        return Ok(());
+    }
+    tracing_subscriber::EnvFilter::try_new(filter)
+        .map(drop)
+        .map_err(|e| anyhow::anyhow!("--log-level {filter:?}: {e}"))
+}
+
+fn finish(name: &str, outcome: anyhow::Result<ExitCode>) -> ExitCode {
+    match outcome {
+        Ok(code) => {
+            // A stdout closed under buffered output is quiet too.
+            let _ = std::io::stdout().flush();
+            code
+        }
+        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
+        Err(e) => {
+            let line = format!("{e:#}").replace('\n', " ");
+            let _ = writeln!(std::io::stderr(), "{name}: error: {line}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// True when the error comes from writing to a closed stdout (a reader such as `head` left).
+pub fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// Writes a line to stdout, returning the error (a closed stdout) instead of panicking as
+/// `println!` does.
+#[macro_export]
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use ::std::io::Write as _;
+        ::std::writeln!(::std::io::stdout().lock(), $($arg)*)
+    }};
+}
+
+/// True when stdout is a pipe or socket whose reader has gone.
+pub fn stdout_closed() -> bool {
+    let mut p = libc::pollfd {
+        fd: 1,
+        events: 0,
+        revents: 0,
+    };
+    // SAFETY: one valid pollfd, no wait.
+    let n = unsafe { libc::poll(&mut p, 1, 0) };
+    n == 1 && p.revents & (libc::POLLERR | libc::POLLHUP) != 0 && stdout_is_pipe()
+}
+
+fn stdout_is_pipe() -> bool {
+    // SAFETY: fstat on fd 1 into a zeroed struct.
+    let mut st: libc::stat = unsafe { std::mem::zeroed() };
+    let ok = unsafe { libc::fstat(1, &mut st) } == 0;
+    let kind = st.st_mode & libc::S_IFMT;
+    ok && (kind == libc::S_IFIFO || kind == libc::S_IFSOCK)
+}
+
+/// An app's state machine, driven by [`Node::run`].
+pub trait Tick {
+    /// Tick as soon as a message arrives, not only when the time asked for has come.
+    const WAKE_ON_MESSAGE: bool = true;
+
+    /// Does one turn of work at `now` (take queued messages, talk to devices, publish) and
+    /// says when it wants the next. An error stops the loop: [`Tick::stop`] still runs.
+    fn tick(&mut self, node: &Node, now: Instant) -> anyhow::Result<Instant>;
+
+    /// Stops gracefully (devices to a safe state), once, after the loop ends.
+    fn stop(self, _node: &Node) -> anyhow::Result<()>
+    where
+        Self: Sized,
+    {
+        Ok(())
+    }
+}
+
+/// A fixed rate for [`Tick::tick`]: the next tick a period after the last, a missed one
+/// skipped rather than caught up in a burst.
+#[derive(Debug, Clone, Copy)]
+pub struct Period {
+    period: Duration,
+    next: Option<Instant>,
+}
+
+impl Period {
+    /// `rate_hz` ticks a second.
+    pub fn hz(rate_hz: f64) -> Period {
+        Period {
+            period: Duration::from_secs_f64(1.0 / rate_hz),
+            next: None,
+        }
+    }
+
+    /// The time of the tick after the one at `now`.
+    pub fn next(&mut self, now: Instant) -> Instant {
+        let mut n = self.next.unwrap_or(now) + self.period;
+        if n < now {
+            n = now + self.period;
+        }
+        self.next = Some(n);
+        n
+    }
+
+    /// True when a tick at `now` is due (the first always is).
+    pub fn due(&self, now: Instant) -> bool {
+        self.next.is_none_or(|n| now >= n)
+    }
+}
+
+impl Node {
+    /// Runs `app` until shutdown (a signal, [`Node::exit_with`], or stdout closed under a
+    /// pipe), handling messages between its ticks; then stops it. Marks the node running
+    /// first unless the app set another state. Returns the exit status asked for.
+    pub fn run<T: Tick>(&self, mut app: T) -> anyhow::Result<ExitCode> {
+        if self.health().state == stride_lcmtypes::stride::NodeStatusT::STATE_STARTING {
+            self.set_running();
+        }
+        let mut wake = Instant::now();
+        let mut next_pipe_check = Instant::now();
+        let mut result = Ok(());
+        while self.running() {
+            let wait = wake.saturating_duration_since(Instant::now());
+            let got = match self.lcm().handle_timeout(wait) {
+                Ok(true) => self.lcm().handle_pending().map(|_| true),
+                other => other,
+            };
+            let got = match got {
+                Ok(g) => g,
+                Err(e) => {
+                    result = Err(anyhow::Error::new(e).context("handling LCM"));
+                    break;
+                }
+            };
+            let now = Instant::now();
+            if now >= next_pipe_check {
+                next_pipe_check = now + Duration::from_millis(50);
+                if stdout_closed() {
+                    tracing::info!("stdout closed; stopping");
+                    break;
+                }
+            }
+            if now >= wake || (got && T::WAKE_ON_MESSAGE) {
+                match app.tick(self, now) {
+                    Ok(w) => wake = w,
+                    Err(e) => {
+                        result = Err(e);
+                        break;
+                    }
+                }
+            }
+        }
+        tracing::info!(node = self.name(), "shutting down");
+        let stopped = app.stop(self);
+        result?;
+        stopped?;
+        Ok(ExitCode::from(self.exit.load(Ordering::Relaxed)))
+    }
+
+    /// Ends [`Node::run`] with exit status `code`.
+    pub fn exit_with(&self, code: u8) {
+        self.exit.store(code, Ordering::Relaxed);
+        self.request_shutdown();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, Default, serde::Deserialize)]
+    #[serde(deny_unknown_fields, default)]
+    struct Opt {
+        rate_hz: f64,
+    }
+    impl AppConfig for Opt {
+        const USE: ConfigUse = ConfigUse::Optional;
+        fn defaults() -> Option<Self> {
+            Some(Opt { rate_hz: 10.0 })
+        }
+        fn check(&self) -> Result<(), String> {
+            if self.rate_hz > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("rate_hz {} must be positive", self.rate_hz))
+            }
+        }
+    }
+    #[derive(Debug, serde::Deserialize)]
+    struct Req {}
+    impl AppConfig for Req {
+        const USE: ConfigUse = ConfigUse::Required("see config/robots/");
+    }
+
+    #[test]
+    fn an_app_without_config_refuses_one() {
+        let e = app_config::<NoConfig>(Some(Path::new("/nonexistent.toml"))).unwrap_err();
+        assert!(format!("{e:#}").contains("takes no configuration"), "{e:#}");
+        assert!(app_config::<NoConfig>(None).is_ok());
+    }
+
+    #[test]
+    fn a_required_config_points_at_examples() {
+        let e = format!("{:#}", app_config::<Req>(None).unwrap_err());
+        assert!(
+            e.contains("--config") && e.contains("config/robots/"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn config_is_checked_and_errors_are_one_line() {
+        assert_eq!(app_config::<Opt>(None).unwrap().rate_hz, 10.0);
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.toml");
+        std::fs::write(&p, "rate_hz = -1.0\n").unwrap();
+        let e = format!("{:#}", app_config::<Opt>(Some(&p)).unwrap_err());
+        assert!(e.contains("c.toml") && e.contains("positive"), "{e}");
+        std::fs::write(&p, "rate = 5.0\n").unwrap();
+        let e = format!("{:#}", app_config::<Opt>(Some(&p)).unwrap_err());
+        assert!(e.contains("rate") && !e.contains('\n'), "{e}");
+    }
+
+    #[test]
+    fn an_unknown_log_level_is_an_error() {
+        if std::env::var_os("RUST_LOG").is_some() {
+            return;
+        }
+        assert!(check_log_filter("info,lcm=debug").is_ok());
+        assert!(check_log_filter("nonsense=+==").is_err());
+    }
+
+    #[test]
+    fn a_broken_pipe_is_quiet() {
+        let e = anyhow::Error::new(std::io::Error::from(std::io::ErrorKind::BrokenPipe))
+            .context("printing");
+        assert!(is_broken_pipe(&e));
+        assert!(!is_broken_pipe(&anyhow::anyhow!("other")));
+    }
+
+    #[test]
+    fn a_period_skips_missed_ticks() {
+        let t0 = Instant::now();
+        let mut p = Period::hz(100.0);
+        assert!(p.due(t0));
+        assert_eq!(p.next(t0), t0 + Duration::from_millis(10));
+        assert!(!p.due(t0 + Duration::from_millis(5)));
+        let late = t0 + Duration::from_millis(55);
+        assert_eq!(p.next(late), late + Duration::from_millis(10));
+    }
+}

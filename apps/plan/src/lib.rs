@@ -1,0 +1,327 @@
+//! `stride-plan`: plans scenes offline and shows the result: its command line ([`Cli`]) and
+//! its whole run ([`run`]).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use indicatif::{ProgressBar, ProgressStyle};
+use stride_footstep_planner::archie::{self, exact_length, headings, Params};
+use stride_footstep_planner::plan::{Plan, Status};
+use stride_footstep_planner::planner;
+use stride_footstep_planner::scene::Scene;
+use stride_footstep_planner::steps::{self, StepParams};
+use stride_footstep_planner::svg;
+use stride_node::outln;
+
+pub mod footsteps;
+
+/// Plan one scene, or every scene of a directory, side by side in each planner's modes. The
+/// planner follows the scene's name: `kaist-*` scenes go to the KAIST planner (the thesis's
+/// tree search and the improved anytime lattice search, on the scene's elevation grid),
+/// `lola-*` scenes to LOLA's (the thesis's search tree, and the improved lattice search
+/// coupled to the 2-D pre-planner), all others to Archie's.
+///
+/// Archie's planner plans in its faithful mode
+/// (the thesis's tangent tree and footsteps, obstacles grown by 0.1 m), in its improved mode on
+/// the same grown obstacles (the exact shortest path, improved footsteps: "same"), and in its
+/// improved mode with its own, footprint-safe growth of 0.215 m ("improved").
+///
+/// For each scene and mode it writes a top view (SCENE-MODE.svg: obstacles, their grown
+/// outlines, the path, numbered footprints) to --out, and one CSV row of every metric (status,
+/// path length, the exact optimum and the ratio, steps, expansions, generated successors,
+/// collision queries, preparation and search time) to --out/plans.csv. With --repeats N each
+/// plan runs N times and the CSV gives the median and 99th-percentile times; --table prints
+/// the same as a Markdown table. KAIST and LOLA scenes go to --out/kaist.csv and
+/// --out/lola.csv (cost, steps, expansions in all and to the first plan, the anytime bound,
+/// times to the first plan and in all) with SVGs on the scene's elevation grid.
+#[derive(clap::Parser, Debug)]
+#[command(name = "stride-plan", version, about, long_about)]
+pub struct Cli {
+    /// Scene files (TOML) or directories of them.
+    #[arg(required = true)]
+    scenes: Vec<PathBuf>,
+    /// Where the SVGs and plans.csv go.
+    #[arg(long, default_value = "out/plans")]
+    out: PathBuf,
+    /// Runs per plan (the times are their median and 99th percentile).
+    #[arg(long, default_value_t = 1)]
+    repeats: usize,
+    /// Print a Markdown table of the results.
+    #[arg(long)]
+    table: bool,
+    /// No SVGs.
+    #[arg(long)]
+    no_svg: bool,
+    /// Time budget of the footstep planners (KAIST's and LOLA's), ms: the improved modes
+    /// improve their plan until it runs out; the thesis's modes stop there.
+    #[arg(long, default_value_t = 200)]
+    budget_ms: u64,
+}
+
+struct Row {
+    scene: String,
+    mode: &'static str,
+    plan: Plan,
+    optimum: f64,
+    steps: usize,
+    p50_us: f64,
+    p99_us: f64,
+}
+
+fn scene_files(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            let mut files: Vec<PathBuf> = std::fs::read_dir(p)
+                .with_context(|| format!("reading {}", p.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| f.extension().is_some_and(|e| e == "toml"))
+                .collect();
+            files.sort();
+            out.extend(files);
+        } else {
+            out.push(p.clone());
+        }
+    }
+    if out.is_empty() {
+        bail!("no scene files");
+    }
+    Ok(out)
+}
+
+/// The `p`th percentile of `v` (sorted in place).
+pub fn pct(v: &mut [f64], p: f64) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[((p / 100.0) * (v.len() - 1) as f64).round() as usize]
+}
+
+/// Plans `scene` in `mode` `repeats` times; the last plan, with its footsteps, and the times.
+fn plan_archie(scene: &Scene, mode: &str, repeats: usize) -> (Plan, Vec<f64>, Params) {
+    let obstacles = scene.circles();
+    let (start, goal) = (scene.start.p(), scene.goal.p());
+    let sp = StepParams::default();
+    let params = if mode == "improved" {
+        Params::improved()
+    } else {
+        Params::default()
+    };
+    let mut times = Vec::with_capacity(repeats);
+    let mut last = None;
+    for _ in 0..repeats.max(1) {
+        let t = Instant::now();
+        let mut plan = if mode == "faithful" {
+            archie::plan_tree(start, goal, &obstacles, &params).0
+        } else {
+            archie::plan_exact(start, goal, &obstacles, &params)
+        };
+        if plan.status == Status::Ok {
+            plan.steps = if mode == "faithful" {
+                steps::faithful(
+                    &plan.path,
+                    &headings(&plan.path, scene.start.yaw),
+                    &sp,
+                    true,
+                )
+            } else {
+                steps::improved(&plan.path, scene.start.yaw, &sp)
+            };
+        }
+        times.push(t.elapsed().as_secs_f64() * 1e6);
+        last = Some(plan);
+    }
+    (last.expect("one run"), times, params)
+}
+
+/// Plans every scene the command line names and writes the results.
+pub fn run(cli: Cli) -> anyhow::Result<std::process::ExitCode> {
+    let files = scene_files(&cli.scenes)?;
+    std::fs::create_dir_all(&cli.out).with_context(|| format!("creating {}", cli.out.display()))?;
+    let bar = ProgressBar::new(files.len() as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").expect("a valid template"),
+    );
+    let mut rows = Vec::new();
+    let mut kaist_rows = Vec::new();
+    let mut lola_rows = Vec::new();
+    let budget = std::time::Duration::from_millis(cli.budget_ms);
+    for f in &files {
+        let scene = Scene::load(f)?;
+        bar.set_message(scene.name.clone());
+        let which = planner::for_scene(&scene);
+        if which != planner::Which::Archie {
+            let found = footsteps::run(&scene, cli.repeats, budget, &cli.out, cli.no_svg)?;
+            if which == planner::Which::Kaist {
+                kaist_rows.extend(found);
+            } else {
+                lola_rows.extend(found);
+            }
+            bar.inc(1);
+            continue;
+        }
+        for mode in ["faithful", "same", "improved"] {
+            let (plan, mut times, params) = plan_archie(&scene, mode, cli.repeats);
+            let optimum = exact_length(scene.start.p(), scene.goal.p(), &scene.circles(), &params)
+                .unwrap_or(f64::NAN);
+            if !cli.no_svg {
+                let title = format!("{} ({mode})", scene.name);
+                let picture = svg::render(
+                    &title,
+                    &scene.circles(),
+                    params.inflation,
+                    scene.start.p(),
+                    scene.goal.p(),
+                    &plan,
+                    StepParams::default().foot_offset,
+                );
+                let path = cli.out.join(format!("{}-{mode}.svg", scene.name));
+                std::fs::write(&path, picture)
+                    .with_context(|| format!("writing {}", path.display()))?;
+            }
+            rows.push(Row {
+                scene: scene.name.clone(),
+                mode,
+                steps: plan.steps.len(),
+                optimum,
+                p50_us: pct(&mut times, 50.0),
+                p99_us: pct(&mut times, 99.0),
+                plan,
+            });
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    for (rows, csv) in [(&mut kaist_rows, "kaist.csv"), (&mut lola_rows, "lola.csv")] {
+        if rows.is_empty() {
+            continue;
+        }
+        footsteps::write_csv(&cli.out.join(csv), rows)?;
+        if cli.table {
+            footsteps::print_table(rows, cli.repeats, budget)?;
+            outln!()?;
+        } else {
+            for r in rows.iter() {
+                outln!(
+                    "{:<18} {:<9} {:<10} cost {:>9.2} {:>3} steps {:>7} expansions bound {}",
+                    r.scene,
+                    r.mode,
+                    r.plan.status.name(),
+                    r.plan.cost,
+                    r.plan.steps.len().saturating_sub(2),
+                    r.plan.stats.expansions,
+                    r.plan.bound.map_or("-".into(), |b| b.to_string()),
+                )?;
+            }
+            outln!(
+                "wrote {} and the SVGs to {}",
+                cli.out.join(csv).display(),
+                cli.out.display()
+            )?;
+        }
+    }
+    if rows.is_empty() {
+        return Ok(std::process::ExitCode::SUCCESS);
+    }
+    write_csv(&cli.out.join("plans.csv"), &rows)?;
+    if cli.table {
+        print_table(&rows, cli.repeats)?;
+    } else {
+        for r in &rows {
+            outln!(
+                "{:<12} {:<9} {:<10} length {:>7.3} m (optimum {:.3}) {:>3} steps {:>6} expansions {:>9.1} µs",
+                r.scene,
+                r.mode,
+                r.plan.status.name(),
+                r.plan.cost,
+                r.optimum,
+                r.steps,
+                r.plan.stats.expansions,
+                r.p50_us
+            )?;
+        }
+        outln!(
+            "wrote {} and the SVGs to {}",
+            cli.out.join("plans.csv").display(),
+            cli.out.display()
+        )?;
+    }
+    Ok(std::process::ExitCode::SUCCESS)
+}
+
+fn write_csv(path: &Path, rows: &[Row]) -> anyhow::Result<()> {
+    let mut f = std::io::BufWriter::new(
+        std::fs::File::create(path).with_context(|| format!("writing {}", path.display()))?,
+    );
+    writeln!(
+        f,
+        "scene,mode,status,length_m,optimum_m,length_over_optimum,steps,expansions,generated,collision_queries,prepare_us,search_us,total_p50_us,total_p99_us"
+    )?;
+    for r in rows {
+        let s = &r.plan.stats;
+        writeln!(
+            f,
+            "{},{},{},{:.6},{:.6},{:.6},{},{},{},{},{:.1},{:.1},{:.1},{:.1}",
+            r.scene,
+            r.mode,
+            r.plan.status.name(),
+            r.plan.cost,
+            r.optimum,
+            r.plan.cost / r.optimum,
+            r.steps,
+            s.expansions,
+            s.generated,
+            s.collision_queries,
+            s.prepare.as_secs_f64() * 1e6,
+            s.search.as_secs_f64() * 1e6,
+            r.p50_us,
+            r.p99_us
+        )?;
+    }
+    Ok(())
+}
+
+fn print_table(rows: &[Row], repeats: usize) -> std::io::Result<()> {
+    outln!("| scene | faithful: length (m) | steps | expansions | p50 / p99 | improved, same obstacles: length (m) | / faithful | / optimum | expansions | p50 / p99 | improved (0.215 m growth): length (m) | / its optimum | steps | p50 / p99 |")?;
+    outln!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")?;
+    for t in rows.chunks(3) {
+        let (f, s, i) = (&t[0], &t[1], &t[2]);
+        outln!(
+            "| {} | {:.3} | {} | {} | {:.0} / {:.0} µs | {:.3} | {:.4} | {:.4} | {} | {:.0} / {:.0} µs | {:.3} | {:.4} | {} | {:.0} / {:.0} µs |",
+            f.scene,
+            f.plan.cost,
+            f.steps,
+            f.plan.stats.expansions,
+            f.p50_us,
+            f.p99_us,
+            s.plan.cost,
+            s.plan.cost / f.plan.cost,
+            s.plan.cost / s.optimum,
+            s.plan.stats.expansions,
+            s.p50_us,
+            s.p99_us,
+            i.plan.cost,
+            i.plan.cost / i.optimum,
+            i.steps,
+            i.p50_us,
+            i.p99_us
+        )?;
+    }
+    let failures = rows.iter().filter(|r| r.plan.status != Status::Ok).count();
+    let improved = || rows.iter().filter(|r| r.mode != "faithful");
+    let worst_p50 = improved().map(|r| r.p50_us).fold(0.0, f64::max);
+    let worst_p99 = improved().map(|r| r.p99_us).fold(0.0, f64::max);
+    let worst_opt = improved()
+        .map(|r| r.plan.cost / r.optimum)
+        .fold(0.0, f64::max);
+    let worst_vs = rows
+        .chunks(3)
+        .map(|t| t[1].plan.cost / t[0].plan.cost)
+        .fold(0.0, f64::max);
+    outln!()?;
+    outln!(
+        "{} plans, {repeats} runs each: {failures} failures. Improved modes: worst p50 {worst_p50:.0} µs (bar < 10 000), worst p99 {worst_p99:.0} µs (bar < 50 000), worst length over the optimum {worst_opt:.4} (bar < 1.01); on the same obstacles, worst length over faithful {worst_vs:.4} (bar ≤ 1.005).",
+        rows.len()
+    )?;
+    Ok(())
+}
