@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use lcm::Lcm;
-use stride_footstep_planner::geom::v2;
+use stride_footstep::geom::v2;
 use stride_footstep_planner::node::request_at;
 use stride_lcmtypes::stride::{
     FootstepPlanRequestT, FootstepPlanT, NodeStatusT, ObstacleListT, ObstacleT,

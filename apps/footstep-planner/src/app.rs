@@ -12,9 +12,9 @@ use stride_lcmtypes::stride::{
 };
 use stride_node::{outln, Node, NodeArgs, Stamper, Tick};
 
-use crate::geom::{v2, V2};
 use crate::node::{obstacles_of, plan_request, request_at, Reason, Replanner, World};
-use crate::scene::Scene;
+use stride_footstep::geom::{v2, V2};
+use stride_footstep::scene::Scene;
 
 /// Plan footsteps on request.
 ///

@@ -8,12 +8,12 @@ use stride_lcmtypes::stride::{
     FootT, FootstepPlanRequestT, FootstepPlanT, FootstepT, HeaderT, ObstacleListT, ObstacleT,
 };
 
-use crate::archie::{self, Params};
-use crate::geom::{v2, Circle, V2};
-use crate::plan::{Foot, Plan, Stats, Status};
-use crate::planner::{self, Request, Which};
-use crate::scene::{Obstacle, Pose, Scene};
-use crate::steps::StepParams;
+use stride_footstep::archie::steps::StepParams;
+use stride_footstep::archie::{self, Params};
+use stride_footstep::geom::{v2, Circle, V2};
+use stride_footstep::plan::{Foot, Plan, Stats, Status};
+use stride_footstep::planner::{self, Request, Which};
+use stride_footstep::scene::{Obstacle, Pose, Scene};
 
 /// What the planner knows of the world: a scene of obstacles (and, from a scene file,
 /// surfaces and a map), and a version that changes when they do.

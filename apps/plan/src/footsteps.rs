@@ -6,11 +6,11 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use stride_footstep_planner::grid::Grid;
-use stride_footstep_planner::plan::{Plan, Status};
-use stride_footstep_planner::planner::{self, scene_request, Which};
-use stride_footstep_planner::scene::Scene;
-use stride_footstep_planner::svg;
+use stride_footstep::grid::Grid;
+use stride_footstep::plan::{Plan, Status};
+use stride_footstep::planner::{self, scene_request, Which};
+use stride_footstep::scene::Scene;
+use stride_footstep::svg;
 use stride_node::outln;
 
 use crate::pct;

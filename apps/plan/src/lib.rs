@@ -7,12 +7,12 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
-use stride_footstep_planner::archie::{self, exact_length, headings, Params};
-use stride_footstep_planner::plan::{Plan, Status};
-use stride_footstep_planner::planner;
-use stride_footstep_planner::scene::Scene;
-use stride_footstep_planner::steps::{self, StepParams};
-use stride_footstep_planner::svg;
+use stride_footstep::archie::steps::{self, StepParams};
+use stride_footstep::archie::{self, exact_length, headings, Params};
+use stride_footstep::plan::{Plan, Status};
+use stride_footstep::planner;
+use stride_footstep::scene::Scene;
+use stride_footstep::svg;
 use stride_node::outln;
 
 pub mod footsteps;

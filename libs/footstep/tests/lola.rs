@@ -5,12 +5,12 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use proptest::prelude::*;
-use stride_footstep_planner::geom::{v2, wrap, V2};
-use stride_footstep_planner::lola::{
+use stride_footstep::geom::{v2, wrap, V2};
+use stride_footstep::lola::{
     mid, place, plan, step_cost, suggestion_count, unplace, Mode, Settings, World,
 };
-use stride_footstep_planner::plan::{Foot, Plan, Stats, Status};
-use stride_footstep_planner::scene::Scene;
+use stride_footstep::plan::{Foot, Plan, Stats, Status};
+use stride_footstep::scene::Scene;
 
 fn scene(name: &str) -> Scene {
     Scene::load(
@@ -348,7 +348,7 @@ fn start_and_goal_checks() {
 
 #[test]
 fn the_thesis_pre_planner_finds_both_corridors_and_prefers_the_free_one() {
-    use stride_footstep_planner::preplan::{preplan, Params, Reduced};
+    use stride_footstep::lola::preplan::{preplan, Params, Reduced};
     let sc = scene("lola-b5-corridors");
     let w = World::of(&sc);
     let (tall, small) = w.reduced(Settings::new(Mode::Thesis).robot.h_max);

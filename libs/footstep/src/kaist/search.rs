@@ -29,12 +29,12 @@ use std::cell::{Cell, RefCell};
 use std::collections::{BinaryHeap, HashMap};
 use std::time::{Duration, Instant};
 
+use crate::archie::steps::FOOT;
 use crate::geom::{v2, wrap, V2};
 use crate::grid::{Grid, GridError, GRID_DETOUR};
 use crate::kaist::{self, Action, CostParams, Subset};
 use crate::plan::{anytime_passes, Entry, Foot, Plan, Stats, Status};
 use crate::scene::Scene;
-use crate::steps::FOOT;
 
 /// Which planner.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

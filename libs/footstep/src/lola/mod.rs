@@ -17,7 +17,7 @@
 //!   of the step from the desired one (W = diag(1, 1, 0.2 m/rad)); heuristic: the weighted
 //!   distance of the mid-stance point and heading from the goal. Consistent for k ≥ 1.
 //! - faithful ([`Mode::Thesis`]): the thesis's search tree (no duplicate detection), its
-//!   heuristic, and its 2-D pre-planner ([`crate::preplan`]: seeds shifted to free space, one
+//!   heuristic, and its 2-D pre-planner ([`crate::lola::preplan`]: seeds shifted to free space, one
 //!   way per homotopy class, the cheapest by Eq. 4.17) coupled as heuristic and heading
 //!   (couplings 1 and 3); at the budget it falls back to stepping in place.
 //! - improved ([`Mode::Improved`]): a scouting pass on a coarse lattice (0.2 m, 15°, weight
@@ -30,6 +30,8 @@
 //!   thesis's 7 steps; the first plan found stands), and the deadline: at the budget the best
 //!   partial plan, or steps in place when none gets nearer.
 
+pub mod preplan;
+
 use std::collections::{BinaryHeap, HashMap};
 use std::time::{Duration, Instant};
 
@@ -38,15 +40,15 @@ use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 use crate::geom::{convex_overlap, foot_cspace, rectangle, v2, wrap, V2};
 use crate::grid::{Grid, GRID_DETOUR};
 use crate::plan::{anytime_passes, Entry, Foot, Plan, Stats, Status};
-use crate::preplan::{self, preplan, Reduced, Way};
 use crate::scene::{Obstacle, Scene};
 use crate::ssv::{overlaps, Solid, P3};
+use preplan::{preplan, Reduced, Way};
 
 /// The 2-D pre-planner whose way the couplings follow.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PrePlanner {
     /// The thesis's: seeds shifted to free space, one way per homotopy class, the cheapest by
-    /// Eq. 4.17 ([`crate::preplan`]).
+    /// Eq. 4.17 ([`crate::lola::preplan`]).
     Thesis,
     /// A distance field over the tall obstacles: the shortest way, as a heuristic that is a
     /// lower bound of its length from anywhere.

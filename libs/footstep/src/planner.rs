@@ -4,12 +4,13 @@
 
 use std::time::Duration;
 
+use crate::archie::steps::{self, StepParams};
 use crate::archie::{self, headings, Params};
+use crate::kaist::search as kaist_search;
 use crate::kaist::CostParams;
+use crate::lola;
 use crate::plan::{Foot, Plan, Stats, Status};
 use crate::scene::{Pose, Scene};
-use crate::steps::{self, StepParams};
-use crate::{kaist_search, lola};
 
 /// The planners.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -2,8 +2,8 @@
 
 use std::path::PathBuf;
 
-use stride_footstep_planner::grid::Grid;
-use stride_footstep_planner::scene::Scene;
+use stride_footstep::grid::Grid;
+use stride_footstep::scene::Scene;
 
 #[test]
 fn every_shipped_scene_loads_and_rasterises() {
@@ -71,11 +71,9 @@ fn an_elevation_file_reads_top_row_first() {
     )
     .unwrap();
     let g = Grid::of_scene(&s).unwrap();
-    assert_eq!(g.height(stride_footstep_planner::geom::v2(0.2, 0.7)), 0.1);
-    assert_eq!(g.height(stride_footstep_planner::geom::v2(1.2, 0.2)), 0.3);
-    assert!(g
-        .height(stride_footstep_planner::geom::v2(1.2, 0.7))
-        .is_nan());
+    assert_eq!(g.height(stride_footstep::geom::v2(0.2, 0.7)), 0.1);
+    assert_eq!(g.height(stride_footstep::geom::v2(1.2, 0.2)), 0.3);
+    assert!(g.height(stride_footstep::geom::v2(1.2, 0.7)).is_nan());
     std::fs::write(dir.join("e.csv"), "0.1, 0.2\n0.0, 0.0\n").unwrap();
     let e = Grid::of_scene(&s).unwrap_err().to_string();
     assert!(e.contains("2 columns; the map's extent needs 3"), "{e}");
@@ -92,5 +90,5 @@ fn a_clockwise_polygon_is_an_obstacle_all_the_same() {
     )
     .unwrap();
     let g = Grid::of_scene(&s).unwrap();
-    assert_eq!(g.height(stride_footstep_planner::geom::v2(1.5, 0.0)), 1.0);
+    assert_eq!(g.height(stride_footstep::geom::v2(1.5, 0.0)), 1.0);
 }

@@ -13,6 +13,8 @@
 //!   Dijkstra; arcs become waypoints on a polygon circumscribed about the circle, so the path
 //!   never enters it and is at most a fraction of a percent longer than the exact optimum.
 
+pub mod steps;
+
 use std::collections::BinaryHeap;
 use std::time::{Duration, Instant};
 

@@ -4,14 +4,14 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use stride_footstep_planner::geom::{v2, V2};
-use stride_footstep_planner::grid::Grid;
-use stride_footstep_planner::kaist::CostParams;
-use stride_footstep_planner::kaist_search::{
+use stride_footstep::geom::{v2, V2};
+use stride_footstep::grid::Grid;
+use stride_footstep::kaist::search::{
     plan, successors, ActionSet, Feasibility, Heuristic, Mode, Settings, World,
 };
-use stride_footstep_planner::plan::{Foot, Plan, Status};
-use stride_footstep_planner::scene::Scene;
+use stride_footstep::kaist::CostParams;
+use stride_footstep::plan::{Foot, Plan, Status};
+use stride_footstep::scene::Scene;
 
 fn scene(name: &str) -> Scene {
     Scene::load(
@@ -447,7 +447,7 @@ fn b7_closed_loop_with_a_person_stepping_in() {
             world = World::of(&scene).unwrap();
             person = Some(ahead);
         }
-        let p = stride_footstep_planner::kaist_search::plan_from(
+        let p = stride_footstep::kaist::search::plan_from(
             stance,
             swing,
             goal,

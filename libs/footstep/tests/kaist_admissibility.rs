@@ -12,10 +12,10 @@ use std::collections::{BinaryHeap, HashMap};
 
 use proptest::prelude::Rng;
 use proptest::test_runner::{TestRng, TestRunner};
-use stride_footstep_planner::geom::{v2, wrap, V2};
-use stride_footstep_planner::kaist::{self, CostParams};
-use stride_footstep_planner::kaist_search::apply;
-use stride_footstep_planner::plan::{Foot, Least};
+use stride_footstep::geom::{v2, wrap, V2};
+use stride_footstep::kaist::search::apply;
+use stride_footstep::kaist::{self, CostParams};
+use stride_footstep::plan::{Foot, Least};
 
 const TOLERANCE: f64 = 0.10;
 /// The horizon of each search, in units of m·g (about seven steps).

@@ -6,6 +6,8 @@
 //! `m·g × polynomial`, so one forward step of 0.3 m costs `mg · 4.4278` with a 0.2 m width.
 //! A step's `l` is its forward advance, `w` the lateral foot separation, `θ` its yaw (D2).
 
+pub mod search;
+
 use crate::geom::wrap;
 
 /// Coefficients and limits of one robot.

@@ -2,9 +2,9 @@
 
 use std::fmt::Write;
 
+use crate::archie::steps::FOOT;
 use crate::geom::{Circle, V2};
 use crate::plan::{Foot, Plan};
-use crate::steps::FOOT;
 
 /// Draws `plan` among `obstacles` (grown by `inflation`) from `start` to `goal`, titled.
 pub fn render(

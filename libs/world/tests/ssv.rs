@@ -5,11 +5,11 @@
 //! footprint against placing the sole.
 
 use proptest::prelude::*;
-use stride_footstep_planner::geom::{
+use stride_world::geom::{
     convex_hull, convex_overlap, foot_cspace, point_polygon_distance, point_segment_distance,
     rectangle, v2, V2,
 };
-use stride_footstep_planner::ssv::{closest_cores, proximity, Core, Solid, P3, V3};
+use stride_world::ssv::{closest_cores, proximity, Core, Solid, P3, V3};
 
 fn pt() -> impl Strategy<Value = P3> {
     (-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0).prop_map(|(x, y, z)| P3::new(x, y, z))

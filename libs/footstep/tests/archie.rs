@@ -3,13 +3,13 @@
 
 use std::path::PathBuf;
 
-use stride_footstep_planner::archie::{
+use stride_footstep::archie::steps::{self, footprint_hits, StepParams};
+use stride_footstep::archie::{
     avoidance_waypoints, child_id, exact_length, headings, inflate, plan_exact, plan_tree, Params,
 };
-use stride_footstep_planner::geom::{v2, Circle};
-use stride_footstep_planner::plan::Status;
-use stride_footstep_planner::scene::Scene;
-use stride_footstep_planner::steps::{self, footprint_hits, StepParams};
+use stride_footstep::geom::{v2, Circle};
+use stride_footstep::plan::Status;
+use stride_footstep::scene::Scene;
 
 fn scenes() -> Vec<Scene> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/archie");

@@ -8,8 +8,8 @@
 use std::collections::BinaryHeap;
 
 use crate::geom::{point_polygon_distance, v2, V2};
-use crate::plan::Least;
 use crate::scene::Scene;
+use crate::Least;
 
 /// Margin around the scene's bounding box when it gives no map, m.
 pub const MARGIN: f64 = 1.5;

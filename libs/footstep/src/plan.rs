@@ -142,24 +142,7 @@ pub fn anytime_passes(
         .collect()
 }
 
-/// An entry of a least-cost-first `BinaryHeap`: a cost and an index, least cost first, then
-/// least index (deterministic).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Least(pub f64, pub usize);
-
-impl Eq for Least {}
-
-impl Ord for Least {
-    fn cmp(&self, o: &Self) -> Ordering {
-        o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
-    }
-}
-
-impl PartialOrd for Least {
-    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-        Some(self.cmp(o))
-    }
-}
+pub use stride_world::Least;
 
 /// An entry of an A* open list (a `BinaryHeap`): least `f` first, then least `h` (the deeper
 /// of two equal ones), then the first inserted: deterministic.
