@@ -78,7 +78,13 @@ fn an_unknown_log_level_is_an_error_in_every_app() {
 
 #[test]
 fn apps_that_take_no_config_refuse_one() {
-    for (name, args) in &NODES[..5] {
+    let takes_none = [
+        "stride-echo",
+        "stride-ping",
+        "stride-joint-move",
+        "stride-usb2can",
+    ];
+    for (name, args) in NODES.iter().filter(|(n, _)| takes_none.contains(n)) {
         let mut a = args.to_vec();
         a.extend(["--config", "/nonexistent/app.toml"]);
         let line = assert_one_line_error(name, &run(name, &a));
@@ -103,6 +109,32 @@ fn a_missing_config_file_is_one_line_without_a_backtrace() {
         let line = assert_one_line_error(name, &run(name, &["--config", "/nonexistent/r.toml"]));
         assert!(line.contains("/nonexistent/r.toml"), "{line}");
     }
+}
+
+#[test]
+fn the_planners_shipped_config_is_taken_and_a_bad_one_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("p.toml");
+    std::fs::write(&bad, "max_steps = 0\n").unwrap();
+    let line = assert_one_line_error(
+        "stride-footstep-planner",
+        &run(
+            "stride-footstep-planner",
+            &["--config", bad.to_str().unwrap()],
+        ),
+    );
+    assert!(line.contains("max_steps"), "{line}");
+    let shipped = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../config/footstep-planner.toml"
+    );
+    let text = std::fs::read_to_string(shipped).unwrap();
+    let cfg: stride_footstep_planner::app::PlannerConfig = toml::from_str(&text).unwrap();
+    assert_eq!(
+        cfg,
+        Default::default(),
+        "the shipped file shows the defaults"
+    );
 }
 
 #[test]

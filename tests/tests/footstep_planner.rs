@@ -51,10 +51,16 @@ fn start(port: u16, scene: Option<&str>) -> Rig {
     let up = Arc::new(Mutex::new(false));
     let (p, u) = (plans.clone(), up.clone());
     let subs = vec![
-        lcm.subscribe("FOOTSTEP_PLAN", move |_, m: FootstepPlanT| {
-            p.lock().unwrap().push(m)
-        })
-        .unwrap(),
+        {
+            let s = lcm
+                .subscribe("FOOTSTEP_PLAN", move |_, m: FootstepPlanT| {
+                    p.lock().unwrap().push(m)
+                })
+                .unwrap();
+            // A burst of answers must wait for the test's loop, not be dropped.
+            s.set_queue_capacity(100_000).unwrap();
+            s
+        },
         lcm.subscribe("STRIDE_STATUS", move |_, m: NodeStatusT| {
             if m.node == "stride-footstep-planner" && m.state == NodeStatusT::STATE_RUNNING {
                 *u.lock().unwrap() = true;
@@ -225,4 +231,207 @@ fn ask_prints_the_running_planners_answer() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("is stride-footstep-planner running?"));
     let (st, _) = r.node.interrupt();
     assert!(st.success());
+}
+
+/// Waits for the answer to request `id`.
+fn answer(r: &Rig, id: i64, within: Duration) -> FootstepPlanT {
+    let found = || {
+        r.plans
+            .lock()
+            .unwrap()
+            .iter()
+            .find(|p| p.request_id == id)
+            .cloned()
+    };
+    assert!(
+        handle_until(&r.lcm, within, || found().is_some()),
+        "request {id} not answered within {within:?}"
+    );
+    found().unwrap()
+}
+
+#[test]
+fn an_infinite_or_huge_obstacle_is_refused_and_the_planner_keeps_answering() {
+    if !in_sandbox() {
+        return;
+    }
+    let r = start(7784, None);
+    for (k, radius) in [f64::INFINITY, 1e9, f64::NAN].into_iter().enumerate() {
+        let mut bad = circle(1, 2.0, 0.0, radius);
+        if radius.is_nan() {
+            bad = circle(1, f64::NAN, 0.0, 0.3);
+        }
+        r.lcm.publish("OBSTACLES", &obstacles(vec![bad])).unwrap();
+        // KAIST's grid is the one a huge world would have blown up; every planner answers.
+        for (j, planner) in [
+            FootstepPlanRequestT::PLANNER_KAIST,
+            FootstepPlanRequestT::PLANNER_ARCHIE,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let id = 10 * k as i64 + j as i64 + 1;
+            let mut req = request(id);
+            req.goal_x = 1.0;
+            req.planner = planner;
+            req.header.frame = format!("client-{id}");
+            r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &req).unwrap();
+            let got = answer(&r, id, Duration::from_secs(5));
+            // The bad list was refused: the world is still empty, so the plan goes straight.
+            assert!(
+                [FootstepPlanT::STATUS_OK, FootstepPlanT::STATUS_PARTIAL].contains(&got.status),
+                "radius {radius}: {} {}",
+                got.status,
+                got.detail
+            );
+        }
+    }
+    let (st, _) = r.node.interrupt();
+    assert!(st.success());
+}
+
+#[test]
+fn a_goal_beyond_the_limit_is_refused_with_its_reason() {
+    if !in_sandbox() {
+        return;
+    }
+    let r = start(7785, None);
+    for (id, x) in [(1, 1e6), (2, 1e8)] {
+        let mut req = request(id);
+        req.goal_x = x;
+        r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &req).unwrap();
+        let got = answer(&r, id, Duration::from_secs(5));
+        assert_eq!(
+            got.status,
+            FootstepPlanT::STATUS_BAD_REQUEST,
+            "{}",
+            got.detail
+        );
+        assert!(got.detail.contains("away"), "{}", got.detail);
+        assert!(got.num_steps <= 3, "{}", got.num_steps);
+    }
+    // A budget beyond the configured longest is refused too.
+    let mut long = request(3);
+    long.max_time_us = 60_000_000;
+    r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &long).unwrap();
+    let got = answer(&r, 3, Duration::from_secs(5));
+    assert_eq!(
+        got.status,
+        FootstepPlanT::STATUS_BAD_REQUEST,
+        "{}",
+        got.detail
+    );
+    let (st, _) = r.node.interrupt();
+    assert!(st.success());
+}
+
+#[test]
+fn every_request_is_answered_superseded_ones_too() {
+    if !in_sandbox() {
+        return;
+    }
+    let r = start(7786, Some("../config/scenes/archie/archie-09.toml"));
+    let n = 1000;
+    for id in 1..=n {
+        let mut req = request(id);
+        req.goal_x = 1.0;
+        req.goal_y = -3.0;
+        r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &req).unwrap();
+        std::thread::sleep(Duration::from_micros(500));
+    }
+    assert!(
+        handle_until(&r.lcm, Duration::from_secs(20), || r
+            .plans
+            .lock()
+            .unwrap()
+            .iter()
+            .map(|p| p.request_id)
+            .collect::<std::collections::BTreeSet<_>>()
+            .len()
+            == n as usize),
+        "{} of {n} answered",
+        r.plans.lock().unwrap().len()
+    );
+    let plans = r.plans.lock().unwrap().clone();
+    assert_eq!(plans.len(), n as usize, "each answered once");
+    let superseded = plans
+        .iter()
+        .filter(|p| p.status == FootstepPlanT::STATUS_SUPERSEDED)
+        .count();
+    assert!(plans
+        .iter()
+        .all(|p| [FootstepPlanT::STATUS_OK, FootstepPlanT::STATUS_SUPERSEDED].contains(&p.status)));
+    // The last request is always planned.
+    assert_eq!(
+        plans.iter().find(|p| p.request_id == n).unwrap().status,
+        FootstepPlanT::STATUS_OK
+    );
+    assert!(
+        superseded > 0,
+        "1000 requests in 0.5 s and none superseded?"
+    );
+    let (st, _) = r.node.interrupt();
+    assert!(st.success());
+}
+
+#[test]
+fn a_long_search_is_cancelled_by_its_requesters_next_request_and_by_shutdown() {
+    if !in_sandbox() {
+        return;
+    }
+    let r = start(7787, None);
+    // A wall across the way: LOLA's thesis mode (a tree search) runs to its budget, 9 s.
+    let wall = (0..30)
+        .map(|k| circle(k, 2.0, -6.0 + 0.4 * k as f64, 0.3))
+        .collect();
+    r.lcm.publish("OBSTACLES", &obstacles(wall)).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let mut long = request(1);
+    long.planner = FootstepPlanRequestT::PLANNER_LOLA;
+    long.faithful = true;
+    long.max_time_us = 9_000_000;
+    r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &long).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let t = std::time::Instant::now();
+    let mut next = request(2);
+    next.goal_x = 1.0;
+    r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &next).unwrap();
+    let got = answer(&r, 2, Duration::from_secs(5));
+    assert_eq!(got.status, FootstepPlanT::STATUS_OK, "{}", got.detail);
+    let first = answer(&r, 1, Duration::from_secs(1));
+    assert_eq!(
+        first.status,
+        FootstepPlanT::STATUS_SUPERSEDED,
+        "{}",
+        first.detail
+    );
+    assert!(t.elapsed() < Duration::from_secs(3), "{:?}", t.elapsed());
+    // Another long search, then SIGINT: the process ends without waiting for it, and the
+    // search is answered.
+    let mut again = long.clone();
+    again.request_id = 3;
+    r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &again).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let t = std::time::Instant::now();
+    let node = r.node;
+    let stop = std::thread::spawn(move || node.interrupt());
+    let last = answer(
+        &Rig {
+            lcm: r.lcm,
+            plans: r.plans,
+            _subs: r._subs,
+            node: Proc::spawn(Command::new("true")),
+        },
+        3,
+        Duration::from_secs(5),
+    );
+    let (st, _) = stop.join().unwrap();
+    assert!(st.success());
+    assert!(t.elapsed() < Duration::from_secs(3), "{:?}", t.elapsed());
+    assert_eq!(
+        last.status,
+        FootstepPlanT::STATUS_SUPERSEDED,
+        "{}",
+        last.detail
+    );
 }

@@ -7,12 +7,16 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use stride_footstep::plan::{Cancel, Plan, Stats, Status};
+use stride_footstep::planner::Limits;
 use stride_lcmtypes::stride::{
     FootT, FootstepPlanRequestT, FootstepPlanT, NodeStatusT, ObstacleListT,
 };
-use stride_node::{outln, Node, NodeArgs, Stamper, Tick};
+use stride_node::{outln, AppConfig, ConfigUse, Node, NodeArgs, Stamper, Tick};
 
-use crate::node::{obstacles_of, plan_request, request_at, Reason, Replanner, World};
+use crate::node::{
+    obstacles_of, plan_request, request_at, to_msg, Job, Reason, Replanner, Scheduler, World,
+};
 use stride_footstep::geom::{v2, V2};
 use stride_footstep::scene::Scene;
 
@@ -27,7 +31,14 @@ use stride_footstep::scene::Scene;
 /// in it. Every planner answers, faithful or improved: Archie's (PLANNER_ARCHIE), the KAIST
 /// energy A* (PLANNER_KAIST, on an elevation grid made from the world; budget 200 ms unless the
 /// request gives one) and LOLA's (PLANNER_LOLA, with the scene's surfaces; 400 ms). An unknown
-/// planner is answered with STATUS_BAD_REQUEST.
+/// planner is answered with STATUS_BAD_REQUEST, and so is a request beyond the configured
+/// limits (--config: goal distance, budget, steps, the world's reach), with the reason; an
+/// obstacle list with an obstacle that is not finite or beyond the reach is refused whole.
+/// Every request is answered: a newer request from the same requester (header.frame)
+/// supersedes its waiting one and cancels its running search, both answered with
+/// STATUS_SUPERSEDED; so are the waiting ones at shutdown. A planner that fails on a request
+/// answers it and goes on. The node status counts what was planned, superseded, refused and
+/// failed.
 #[derive(clap::Parser, Debug)]
 #[command(name = "stride-footstep-planner", version, about, long_about)]
 pub struct Cli {
@@ -204,31 +215,140 @@ impl Tick for Asker {
     }
 }
 
-struct Job {
-    req: FootstepPlanRequestT,
-    world: World,
-    reason: Reason,
+/// The planner's TOML configuration: what it takes (requests and worlds beyond are refused
+/// with STATUS_BAD_REQUEST and the reason) and how many requests may wait.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PlannerConfig {
+    /// The farthest the goal may be from the robot, m.
+    pub max_goal_distance_m: f64,
+    /// The farthest from the origin any number of the world may be (obstacles' coordinates
+    /// and sizes, surfaces, map), m.
+    pub reach_m: f64,
+    /// The most steps a plan may have.
+    pub max_steps: usize,
+    /// The longest budget a request may ask for, ms.
+    pub max_budget_ms: u64,
+    /// The most obstacles an obstacle list may hold.
+    pub max_obstacles: usize,
+    /// Requests of other requesters that may wait while one is planned.
+    pub max_waiting: usize,
 }
 
-type Done = (FootstepPlanT, Vec<V2>, f64, u64, Reason, Duration);
+impl Default for PlannerConfig {
+    fn default() -> Self {
+        let l = Limits::default();
+        PlannerConfig {
+            max_goal_distance_m: l.max_goal_distance,
+            reach_m: l.reach,
+            max_steps: l.max_steps,
+            max_budget_ms: l.max_budget.as_millis() as u64,
+            max_obstacles: 10_000,
+            max_waiting: 16,
+        }
+    }
+}
 
-/// The node: requests and the world in, jobs to the search thread, plans out.
+impl PlannerConfig {
+    /// The planners' limits.
+    pub fn limits(&self) -> Limits {
+        Limits {
+            max_goal_distance: self.max_goal_distance_m,
+            reach: self.reach_m,
+            max_steps: self.max_steps,
+            max_budget: Duration::from_millis(self.max_budget_ms),
+        }
+    }
+}
+
+impl AppConfig for PlannerConfig {
+    const USE: ConfigUse = ConfigUse::Optional;
+    fn defaults() -> Option<Self> {
+        Some(PlannerConfig::default())
+    }
+    fn check(&self) -> Result<(), String> {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !positive(self.max_goal_distance_m) || !positive(self.reach_m) {
+            return Err("max_goal_distance_m and reach_m must be positive".into());
+        }
+        if self.max_steps == 0 || self.max_budget_ms == 0 || self.max_waiting == 0 {
+            return Err("max_steps, max_budget_ms and max_waiting must be positive".into());
+        }
+        Ok(())
+    }
+}
+
+/// What the search thread sends back: the job and its answer, or the panic's message.
+type Done = (Job, Result<(FootstepPlanT, Vec<V2>, f64), String>, Duration);
+
+/// The search thread: one job at a time; a search that panics is answered, not lost.
+fn spawn_worker(
+    limits: Limits,
+) -> std::io::Result<(
+    mpsc::Sender<Job>,
+    mpsc::Receiver<Done>,
+    std::thread::JoinHandle<()>,
+)> {
+    let (jobs, job_rx) = mpsc::channel::<Job>();
+    let (done, results) = mpsc::channel();
+    let worker = std::thread::Builder::new()
+        .name("search".into())
+        .spawn(move || {
+            while let Ok(job) = job_rx.recv() {
+                let t = Instant::now();
+                let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    plan_request(&job.req, &job.world, &limits, &job.cancel)
+                }))
+                .map_err(|p| {
+                    p.downcast_ref::<&str>()
+                        .map(|s| s.to_string())
+                        .or_else(|| p.downcast_ref::<String>().cloned())
+                        .unwrap_or_else(|| "a panic".into())
+                });
+                if done.send((job, out, t.elapsed())).is_err() {
+                    break;
+                }
+            }
+        })?;
+    Ok((jobs, results, worker))
+}
+
+/// What the node has answered, for its status.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Plans answered after a search.
+    pub planned: u64,
+    /// Requests answered as superseded.
+    pub superseded: u64,
+    /// Requests or worlds refused (beyond the limits, malformed).
+    pub refused: u64,
+    /// Searches that failed (a panic in a planner), answered with STATUS_BAD_REQUEST.
+    pub failed: u64,
+    /// Times the search thread was started again.
+    pub restarts: u64,
+}
+
+/// The node: requests and the world in, jobs to the search thread one at a time, plans out.
 pub struct PlannerApp {
     cli: Cli,
+    cfg: PlannerConfig,
     world: World,
     _subs: [lcm::Subscription; 2],
     requests: mpsc::Receiver<FootstepPlanRequestT>,
     obstacles: mpsc::Receiver<ObstacleListT>,
-    jobs: Option<mpsc::Sender<Job>>,
+    jobs: mpsc::Sender<Job>,
     results: mpsc::Receiver<Done>,
-    worker: Option<std::thread::JoinHandle<()>>,
+    worker: std::thread::JoinHandle<()>,
+    scheduler: Scheduler,
     stamper: Stamper,
     replanner: Replanner,
+    counts: Counts,
+    last_problem: String,
 }
 
 impl PlannerApp {
     /// Loads the scene, subscribes and starts the search thread.
-    pub fn start(node: &Node, cli: Cli) -> anyhow::Result<PlannerApp> {
+    pub fn start(node: &Node, cli: Cli, cfg: PlannerConfig) -> anyhow::Result<PlannerApp> {
         let world = match &cli.scene {
             Some(path) => World::from_scene(
                 Scene::load(path).with_context(|| format!("loading {}", path.display()))?,
@@ -236,53 +356,126 @@ impl PlannerApp {
             None => World::default(),
         };
         let (req_sub, requests) = node.queue::<FootstepPlanRequestT>(&cli.request_channel)?;
+        // A burst of requests waits for the loop rather than being dropped: each is answered.
+        req_sub.set_queue_capacity(10_000)?;
         let (obs_sub, obstacles) = node.queue::<ObstacleListT>(&cli.obstacle_channel)?;
-        // The searches run on their own thread; only the latest job waiting is worth doing.
-        let (jobs, job_rx) = mpsc::channel::<Job>();
-        let (done, results) = mpsc::channel();
-        let worker = std::thread::Builder::new()
-            .name("search".into())
-            .spawn(move || {
-                while let Ok(mut job) = job_rx.recv() {
-                    while let Ok(newer) = job_rx.try_recv() {
-                        job = newer;
-                    }
-                    let t = Instant::now();
-                    let (msg, path, inflation) = plan_request(&job.req, &job.world);
-                    let out = (
-                        msg,
-                        path,
-                        inflation,
-                        job.world.version,
-                        job.reason,
-                        t.elapsed(),
-                    );
-                    if done.send(out).is_err() {
-                        break;
-                    }
-                }
-            })?;
+        let (jobs, results, worker) = spawn_worker(cfg.limits())?;
         Ok(PlannerApp {
+            scheduler: Scheduler::new(cfg.max_waiting),
             cli,
+            cfg,
             world,
             _subs: [req_sub, obs_sub],
             requests,
             obstacles,
-            jobs: Some(jobs),
+            jobs,
             results,
-            worker: Some(worker),
+            worker,
             stamper: Stamper::new("world"),
             replanner: Replanner::default(),
+            counts: Counts::default(),
+            last_problem: String::new(),
         })
     }
 
-    fn send(&self, req: FootstepPlanRequestT, reason: Reason) {
-        if let Some(jobs) = &self.jobs {
-            let _ = jobs.send(Job {
-                req,
-                world: self.world.clone(),
-                reason,
-            });
+    /// What it has answered so far.
+    pub fn counts(&self) -> Counts {
+        self.counts
+    }
+
+    fn publish(&mut self, node: &Node, mut msg: FootstepPlanT) {
+        msg.header = self.stamper.stamp();
+        if let Err(e) = node.lcm().publish(&self.cli.plan_channel, &msg) {
+            tracing::warn!(error = %e, "could not publish the plan");
+        }
+    }
+
+    fn supersede(&mut self, node: &Node, gone: Vec<Job>, why: &str) {
+        for j in gone {
+            self.counts.superseded += 1;
+            let msg = j.superseded(why);
+            self.publish(node, msg);
+        }
+    }
+
+    fn queue(&mut self, node: &Node, req: FootstepPlanRequestT, reason: Reason) {
+        let job = Job {
+            req,
+            world: self.world.clone(),
+            reason,
+            cancel: Cancel::new(),
+        };
+        let id = job.req.request_id;
+        let gone = self.scheduler.push(job);
+        self.supersede(node, gone, &format!("superseded by request {id}"));
+    }
+
+    /// Hands the next job to the search thread, starting the thread again if it died.
+    fn dispatch(&mut self) -> anyhow::Result<()> {
+        let Some(job) = self.scheduler.start_next() else {
+            return Ok(());
+        };
+        if let Err(mpsc::SendError(job)) = self.jobs.send(job) {
+            tracing::error!("the search thread has gone; starting it again");
+            self.counts.restarts += 1;
+            let (jobs, results, worker) = spawn_worker(self.cfg.limits())?;
+            (self.jobs, self.results, self.worker) = (jobs, results, worker);
+            let _ = self.jobs.send(job);
+        }
+        Ok(())
+    }
+
+    fn answer(&mut self, node: &Node, (job, out, took): Done) {
+        self.scheduler.done();
+        let mut msg = match out {
+            Ok((msg, path, inflation)) => {
+                if msg.status != FootstepPlanT::STATUS_SUPERSEDED {
+                    self.replanner.planned(path, inflation, job.world.version);
+                }
+                msg
+            }
+            Err(panic) => {
+                self.counts.failed += 1;
+                let why = format!("the planner failed on this request ({panic})");
+                let plan = Plan::failed(Status::Refused, why, Stats::default());
+                to_msg(&job.req, &plan, 0, true)
+            }
+        };
+        match msg.status {
+            FootstepPlanT::STATUS_SUPERSEDED => {
+                self.counts.superseded += 1;
+                msg.detail = "superseded while planning".into();
+            }
+            FootstepPlanT::STATUS_BAD_REQUEST => self.counts.refused += 1,
+            _ => self.counts.planned += 1,
+        }
+        tracing::info!(
+            request = msg.request_id,
+            reason = ?job.reason,
+            status = msg.status,
+            steps = msg.num_steps,
+            micros = took.as_micros() as u64,
+            "plan"
+        );
+        if ![FootstepPlanT::STATUS_OK, FootstepPlanT::STATUS_SUPERSEDED].contains(&msg.status) {
+            self.last_problem = format!("request {}: {}", msg.request_id, msg.detail);
+        }
+        self.publish(node, msg);
+    }
+
+    fn report(&self, node: &Node) {
+        let c = self.counts;
+        let counts = format!(
+            "planned {}, superseded {}, refused {}, failed {}, search restarts {}",
+            c.planned, c.superseded, c.refused, c.failed, c.restarts
+        );
+        if self.last_problem.is_empty() {
+            node.set_health(NodeStatusT::STATE_RUNNING, counts);
+        } else {
+            node.set_health(
+                NodeStatusT::STATE_DEGRADED,
+                format!("{}; {counts}", self.last_problem),
+            );
         }
     }
 }
@@ -291,59 +484,64 @@ impl Tick for PlannerApp {
     fn tick(&mut self, node: &Node, now: Instant) -> anyhow::Result<Instant> {
         while let Ok(req) = self.requests.try_recv() {
             if let Some((req, reason)) = self.replanner.on_request(req) {
-                self.send(req, reason);
+                self.queue(node, req, reason);
             }
         }
         while let Ok(list) = self.obstacles.try_recv() {
             if self.cli.scene.is_some() {
                 continue; // the scene is the world
             }
-            if self.world.update(obstacles_of(&list)) {
-                if let Some((req, reason)) = self.replanner.on_world(&self.world) {
-                    self.send(req, reason);
+            match obstacles_of(&list, self.cfg.reach_m, self.cfg.max_obstacles) {
+                Ok(obstacles) => {
+                    if self.world.update(obstacles) {
+                        if let Some((req, reason)) = self.replanner.on_world(&self.world) {
+                            self.queue(node, req, reason);
+                        }
+                    }
+                }
+                Err(why) => {
+                    self.counts.refused += 1;
+                    tracing::warn!("obstacle list refused, the world kept as it was: {why}");
+                    self.last_problem = format!("obstacle list refused: {why}");
                 }
             }
         }
-        while let Ok((mut msg, path, inflation, version, reason, took)) = self.results.try_recv() {
-            self.replanner.planned(path, inflation, version);
-            msg.header = self.stamper.stamp();
-            tracing::info!(
-                request = msg.request_id,
-                ?reason,
-                status = msg.status,
-                steps = msg.num_steps,
-                micros = took.as_micros() as u64,
-                "plan"
-            );
-            if msg.status != FootstepPlanT::STATUS_OK {
-                node.set_health(
-                    NodeStatusT::STATE_DEGRADED,
-                    format!("request {}: {}", msg.request_id, msg.detail),
-                );
-            } else {
-                node.set_running();
-            }
-            if let Err(e) = node.lcm().publish(&self.cli.plan_channel, &msg) {
-                tracing::warn!(error = %e, "could not publish the plan");
-            }
+        while let Ok(done) = self.results.try_recv() {
+            self.answer(node, done);
         }
+        self.dispatch()?;
+        self.report(node);
         Ok(now + Duration::from_millis(5))
     }
 
-    fn stop(mut self, _node: &Node) -> anyhow::Result<()> {
-        drop(self.jobs.take());
-        if let Some(w) = self.worker.take() {
-            let _ = w.join();
+    fn stop(mut self, node: &Node) -> anyhow::Result<()> {
+        // The running search is cancelled; every request still waiting is answered.
+        let waiting = self.scheduler.stop();
+        self.supersede(node, waiting, "the planner is shutting down");
+        if self.scheduler.busy() {
+            if let Ok(done) = self.results.recv_timeout(Duration::from_secs(5)) {
+                self.answer(node, done);
+            }
         }
+        drop(self.jobs);
+        let _ = self.worker.join();
+        let c = self.counts;
+        tracing::info!(
+            planned = c.planned,
+            superseded = c.superseded,
+            refused = c.refused,
+            failed = c.failed,
+            "planner stopped"
+        );
         Ok(())
     }
 }
 
 /// The whole program: `--ask` or the node.
-pub fn run(node: &Node, cli: Cli) -> anyhow::Result<ExitCode> {
+pub fn run(node: &Node, cli: Cli, cfg: PlannerConfig) -> anyhow::Result<ExitCode> {
     if cli.ask.is_some() {
         node.run(Asker::start(node, cli)?)
     } else {
-        node.run(PlannerApp::start(node, cli)?)
+        node.run(PlannerApp::start(node, cli, cfg)?)
     }
 }

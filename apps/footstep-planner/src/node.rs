@@ -8,11 +8,11 @@ use stride_lcmtypes::stride::{
     FootT, FootstepPlanRequestT, FootstepPlanT, FootstepT, HeaderT, ObstacleListT, ObstacleT,
 };
 
+use stride_footstep::archie;
 use stride_footstep::archie::steps::StepParams;
-use stride_footstep::archie::{self, Params};
 use stride_footstep::geom::{v2, Circle, V2};
-use stride_footstep::plan::{Foot, Plan, Stats, Status};
-use stride_footstep::planner::{self, Request, Which};
+use stride_footstep::plan::{Cancel, Foot, Plan, Stats, Status};
+use stride_footstep::planner::{self, Limits, Request, Which};
 use stride_footstep::scene::{Obstacle, Pose, Scene};
 
 /// What the planner knows of the world: a scene of obstacles (and, from a scene file,
@@ -64,9 +64,28 @@ impl World {
     }
 }
 
-/// The obstacles of a perception message, as scene obstacles.
-pub fn obstacles_of(list: &ObstacleListT) -> Vec<Obstacle> {
-    list.obstacles.iter().map(obstacle_of).collect()
+/// The obstacles of a perception message, as scene obstacles; the whole list is refused when
+/// one of them is not made of finite numbers within `reach` m (a NaN centre, an infinite or
+/// absurd radius), or when it holds more than `max` obstacles.
+pub fn obstacles_of(list: &ObstacleListT, reach: f64, max: usize) -> Result<Vec<Obstacle>, String> {
+    if list.obstacles.len() > max {
+        return Err(format!(
+            "{} obstacles, more than the {max} allowed",
+            list.obstacles.len()
+        ));
+    }
+    list.obstacles
+        .iter()
+        .enumerate()
+        .map(|(i, o)| {
+            let ob = obstacle_of(o);
+            ob.check(reach).map_err(|e| format!("obstacle {i}: {e}"))?;
+            if o.radius < 0.0 {
+                return Err(format!("obstacle {i}: radius {} is negative", o.radius));
+            }
+            Ok(ob)
+        })
+        .collect()
 }
 
 fn obstacle_of(o: &ObstacleT) -> Obstacle {
@@ -101,9 +120,14 @@ fn obstacle_of(o: &ObstacleT) -> Obstacle {
     }
 }
 
-/// A plan for `req` in `world`: the message, the planner's path and the growth around it that
-/// the replanning check uses.
-pub fn plan_request(req: &FootstepPlanRequestT, world: &World) -> (FootstepPlanT, Vec<V2>, f64) {
+/// A plan for `req` in `world` within `limits` (`cancel` stops it): the message, the
+/// planner's path and the growth around it that the replanning check uses.
+pub fn plan_request(
+    req: &FootstepPlanRequestT,
+    world: &World,
+    limits: &Limits,
+    cancel: &Cancel,
+) -> (FootstepPlanT, Vec<V2>, f64) {
     let stance = v2(req.stance.x, req.stance.y);
     let swing = v2(req.swing.x, req.swing.y);
     let start = (stance + swing) * 0.5;
@@ -184,26 +208,13 @@ pub fn plan_request(req: &FootstepPlanRequestT, world: &World) -> (FootstepPlanT
     let budget = if req.max_time_us > 0 {
         Duration::from_micros(req.max_time_us as u64)
     } else {
-        match which {
-            Which::Lola => Duration::from_millis(400),
-            _ => Duration::from_millis(200),
-        }
+        which.default_budget()
     };
-    let plan = planner::plan(&r, &world.scene, budget);
-    // The growth the replanning check puts around the path: the planner's own for Archie's,
-    // half a foot for the footstep planners (their paths run between the feet).
-    let inflation = match which {
-        Which::Archie if req.faithful => Params::default().inflation,
-        Which::Archie => Params::improved().inflation,
-        _ => 0.1,
-    };
-    // Archie's footsteps list the standing foot, then the steps; the footstep planners list
-    // both feet where they stand first.
-    let standing = if which == Which::Archie { 1 } else { 2 };
+    let plan = planner::plan_within(&r, &world.scene, budget, limits, cancel);
     (
-        to_msg(req, &plan, standing, false),
+        to_msg(req, &plan, which.standing(), false),
         plan.path.clone(),
-        inflation,
+        which.replan_inflation(req.faithful),
     )
 }
 
@@ -249,6 +260,8 @@ pub fn to_msg(
             Status::StartInCollision => FootstepPlanT::STATUS_START_IN_COLLISION,
             Status::GoalInCollision => FootstepPlanT::STATUS_GOAL_IN_COLLISION,
             Status::GoalOutsideMap => FootstepPlanT::STATUS_GOAL_OUTSIDE_MAP,
+            Status::Refused => FootstepPlanT::STATUS_BAD_REQUEST,
+            Status::Cancelled => FootstepPlanT::STATUS_SUPERSEDED,
         }
     };
     let swing_left = req.swing.side == FootT::SIDE_LEFT;
@@ -398,9 +411,108 @@ impl Replanner {
     }
 }
 
+/// A search to run: the request, the world as it was, why, and the flag that cancels it.
+#[derive(Debug, Clone)]
+pub struct Job {
+    /// The request.
+    pub req: FootstepPlanRequestT,
+    /// The world to plan in.
+    pub world: World,
+    /// Why it is planned.
+    pub reason: Reason,
+    /// Set to stop it.
+    pub cancel: Cancel,
+}
+
+impl Job {
+    /// Who asked: requests with the same `header.frame` come from the same requester.
+    pub fn requester(&self) -> &str {
+        &self.req.header.frame
+    }
+
+    /// The answer to a job that will not be planned (superseded, or the node stopping).
+    pub fn superseded(&self, why: &str) -> FootstepPlanT {
+        let plan = Plan::failed(Status::Cancelled, why, Stats::default());
+        to_msg(&self.req, &plan, 0, false)
+    }
+}
+
+/// The order searches run in, one at a time: a new request supersedes its requester's
+/// waiting one and cancels its running one, so a requester always gets its latest request
+/// planned, and every request is answered (the superseded ones with `STATUS_SUPERSEDED`).
+/// Other requesters' requests wait their turn, at most `max_waiting` of them; beyond, the
+/// oldest waiting is superseded.
+#[derive(Debug)]
+pub struct Scheduler {
+    waiting: std::collections::VecDeque<Job>,
+    running: Option<Job>,
+    max_waiting: usize,
+}
+
+impl Scheduler {
+    /// A scheduler keeping at most `max_waiting` jobs waiting (at least 1).
+    pub fn new(max_waiting: usize) -> Scheduler {
+        Scheduler {
+            waiting: Default::default(),
+            running: None,
+            max_waiting: max_waiting.max(1),
+        }
+    }
+
+    /// Queues `job`; returns the jobs it supersedes (to be answered), and cancels the running
+    /// job of the same requester (its search stops and answers as cancelled).
+    pub fn push(&mut self, job: Job) -> Vec<Job> {
+        let who = job.requester().to_owned();
+        let (mut gone, keep): (Vec<Job>, Vec<Job>) =
+            self.waiting.drain(..).partition(|j| j.requester() == who);
+        self.waiting = keep.into();
+        if let Some(r) = &self.running {
+            if r.requester() == who {
+                r.cancel.cancel();
+            }
+        }
+        self.waiting.push_back(job);
+        while self.waiting.len() > self.max_waiting {
+            gone.extend(self.waiting.pop_front());
+        }
+        gone
+    }
+
+    /// The next job to run, when none is running.
+    pub fn start_next(&mut self) -> Option<Job> {
+        if self.running.is_some() {
+            return None;
+        }
+        self.running = self.waiting.pop_front();
+        self.running.clone()
+    }
+
+    /// The running job finished.
+    pub fn done(&mut self) {
+        self.running = None;
+    }
+
+    /// True while a job runs.
+    pub fn busy(&self) -> bool {
+        self.running.is_some()
+    }
+
+    /// Stopping: cancels the running job and returns the waiting ones (to be answered).
+    pub fn stop(&mut self) -> Vec<Job> {
+        if let Some(r) = &self.running {
+            r.cancel.cancel();
+        }
+        self.waiting.drain(..).collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn plan(req: &FootstepPlanRequestT, world: &World) -> (FootstepPlanT, Vec<V2>, f64) {
+        plan_request(req, world, &Limits::default(), &Cancel::new())
+    }
 
     fn request(goal: (f64, f64), planner: i8, faithful: bool) -> FootstepPlanRequestT {
         FootstepPlanRequestT {
@@ -429,7 +541,7 @@ mod tests {
     #[test]
     fn plans_echo_the_request_and_alternate_from_the_swing_foot() {
         for faithful in [true, false] {
-            let (msg, path, _) = plan_request(
+            let (msg, path, _) = plan(
                 &request((4.0, 0.0), FootstepPlanRequestT::PLANNER_ARCHIE, faithful),
                 &world(),
             );
@@ -448,7 +560,7 @@ mod tests {
 
     #[test]
     fn failures_are_statuses_with_steps_in_place() {
-        let (msg, _, _) = plan_request(&request((4.0, 0.0), 9, false), &world());
+        let (msg, _, _) = plan(&request((4.0, 0.0), 9, false), &world());
         assert_eq!(msg.status, FootstepPlanT::STATUS_BAD_REQUEST);
         assert!(msg.detail.contains("unknown planner 9"));
         assert_eq!(msg.num_steps, 3);
@@ -458,7 +570,7 @@ mod tests {
             FootstepPlanRequestT::PLANNER_KAIST,
             FootstepPlanRequestT::PLANNER_LOLA,
         ] {
-            let (msg, _, _) = plan_request(&request((2.0, 0.1), planner, false), &world());
+            let (msg, _, _) = plan(&request((2.0, 0.1), planner, false), &world());
             assert_eq!(
                 msg.status,
                 FootstepPlanT::STATUS_GOAL_IN_COLLISION,
@@ -477,7 +589,7 @@ mod tests {
     fn bad_requests_are_refused_with_reasons() {
         let good = request((4.0, 0.0), FootstepPlanRequestT::PLANNER_KAIST, false);
         let refused = |r: FootstepPlanRequestT, why: &str| {
-            let (msg, _, _) = plan_request(&r, &World::default());
+            let (msg, _, _) = plan(&r, &World::default());
             assert_eq!(msg.status, FootstepPlanT::STATUS_BAD_REQUEST, "{why}");
             assert!(msg.detail.contains(why), "{}", msg.detail);
             assert!(msg.num_steps >= 3);
@@ -502,7 +614,7 @@ mod tests {
             max_expansions: 3,
             ..good
         };
-        let (msg, _, _) = plan_request(&capped, &World::default());
+        let (msg, _, _) = plan(&capped, &World::default());
         assert!(msg.expansions <= 3 + 1, "{}", msg.expansions);
         assert_ne!(msg.status, FootstepPlanT::STATUS_OK);
     }
@@ -515,7 +627,7 @@ mod tests {
         ] {
             for faithful in [false, true] {
                 let (msg, path, _) =
-                    plan_request(&request((1.5, 0.0), planner, faithful), &World::default());
+                    plan(&request((1.5, 0.0), planner, faithful), &World::default());
                 assert_eq!(
                     msg.status,
                     FootstepPlanT::STATUS_OK,
@@ -551,7 +663,7 @@ mod tests {
         assert_eq!(r.on_world(&w), None, "no request yet");
         let (req, why) = r.on_request(req).unwrap();
         assert_eq!(why, Reason::Request);
-        let (_, path, inflation) = plan_request(&req, &w);
+        let (_, path, inflation) = plan(&req, &w);
         r.planned(path, inflation, w.version);
         // An obstacle far away: the plan stands.
         let mut far = w.scene.obstacle.clone();
@@ -567,5 +679,102 @@ mod tests {
         assert!(w.update(across));
         assert_eq!(r.on_world(&w).map(|x| x.1), Some(Reason::WorldChanged));
         assert_eq!(r.on_world(&w), None, "once per change");
+    }
+
+    fn job(id: i64, who: &str) -> Job {
+        let mut req = request_at(id, 0, v2(0.0, 0.0), 0.0, v2(1.0, 0.0));
+        req.header.frame = who.into();
+        Job {
+            req,
+            world: World::default(),
+            reason: Reason::Request,
+            cancel: Cancel::new(),
+        }
+    }
+
+    #[test]
+    fn a_requesters_new_request_supersedes_its_waiting_one_and_cancels_its_running_one() {
+        let mut s = Scheduler::new(4);
+        assert!(s.push(job(1, "a")).is_empty());
+        let running = s.start_next().unwrap();
+        assert_eq!(running.req.request_id, 1);
+        assert!(s.push(job(2, "a")).is_empty());
+        assert!(
+            running.cancel.is_cancelled(),
+            "the running search of the same requester"
+        );
+        assert!(s.push(job(3, "b")).is_empty());
+        let gone = s.push(job(4, "a"));
+        assert_eq!(
+            gone.iter().map(|j| j.req.request_id).collect::<Vec<_>>(),
+            [2]
+        );
+        assert!(s.start_next().is_none(), "one search at a time");
+        s.done();
+        assert_eq!(
+            s.start_next().unwrap().req.request_id,
+            3,
+            "other requesters keep their turn"
+        );
+        s.done();
+        assert_eq!(s.start_next().unwrap().req.request_id, 4);
+        let ans = gone[0].superseded("superseded by request 4");
+        assert_eq!(ans.status, FootstepPlanT::STATUS_SUPERSEDED);
+        assert_eq!(ans.request_id, 2);
+    }
+
+    #[test]
+    fn waiting_beyond_the_bound_supersedes_the_oldest_and_stop_returns_the_rest() {
+        let mut s = Scheduler::new(2);
+        s.push(job(1, "a"));
+        s.start_next();
+        assert!(s.push(job(2, "b")).is_empty());
+        assert!(s.push(job(3, "c")).is_empty());
+        let gone = s.push(job(4, "d"));
+        assert_eq!(gone[0].req.request_id, 2);
+        let left = s.stop();
+        assert_eq!(left.len(), 2);
+    }
+
+    #[test]
+    fn an_obstacle_list_with_a_bad_number_is_refused_whole() {
+        let circle = |x: f64, r: f64| ObstacleT {
+            kind: ObstacleT::KIND_CIRCLE,
+            center: [x, 0.0, 0.0],
+            radius: r,
+            z_max: 1.0,
+            ..Default::default()
+        };
+        let list = |v: Vec<ObstacleT>| ObstacleListT {
+            num_obstacles: v.len() as i32,
+            obstacles: v,
+            ..Default::default()
+        };
+        assert!(obstacles_of(&list(vec![circle(2.0, 0.3)]), 1000.0, 10).is_ok());
+        for bad in [
+            circle(2.0, f64::INFINITY),
+            circle(2.0, 1e9),
+            circle(f64::NAN, 0.3),
+            circle(2.0, -0.3),
+        ] {
+            let e = obstacles_of(&list(vec![circle(1.0, 0.2), bad]), 1000.0, 10).unwrap_err();
+            assert!(e.starts_with("obstacle 1"), "{e}");
+        }
+        assert!(obstacles_of(&list(vec![circle(1.0, 0.2); 11]), 1000.0, 10).is_err());
+    }
+
+    #[test]
+    fn a_goal_a_thousand_kilometres_away_is_refused_not_planned() {
+        let (msg, path, _) = plan(
+            &request_at(1, 0, v2(0.0, 0.0), 0.0, v2(1e6, 0.0)),
+            &World::default(),
+        );
+        assert_eq!(
+            msg.status,
+            FootstepPlanT::STATUS_BAD_REQUEST,
+            "{}",
+            msg.detail
+        );
+        assert!(path.is_empty() && msg.num_steps == 3);
     }
 }

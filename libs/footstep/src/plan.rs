@@ -1,6 +1,8 @@
 //! What every planner answers.
 
 use std::cmp::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering as AtomicOrdering};
+use std::sync::Arc;
 use std::time::Duration;
 
 use crate::geom::V2;
@@ -20,6 +22,11 @@ pub enum Status {
     GoalInCollision,
     /// The goal is outside the map.
     GoalOutsideMap,
+    /// The request or its world is outside what the planner takes (not finite, too far, too
+    /// large): refused before any search.
+    Refused,
+    /// Cancelled before it finished (a newer request superseded it, or shutdown).
+    Cancelled,
 }
 
 impl Status {
@@ -32,7 +39,37 @@ impl Status {
             Status::StartInCollision => "start in collision",
             Status::GoalInCollision => "goal in collision",
             Status::GoalOutsideMap => "goal outside map",
+            Status::Refused => "refused",
+            Status::Cancelled => "cancelled",
         }
+    }
+}
+
+/// A flag that cancels a running search (checked where the searches check their deadline);
+/// clones share it.
+#[derive(Debug, Clone, Default)]
+pub struct Cancel(Arc<AtomicBool>);
+
+impl Cancel {
+    /// A flag not set.
+    pub fn new() -> Cancel {
+        Cancel::default()
+    }
+
+    /// Cancels every search holding this flag.
+    pub fn cancel(&self) {
+        self.0.store(true, AtomicOrdering::Relaxed);
+    }
+
+    /// True once cancelled.
+    pub fn is_cancelled(&self) -> bool {
+        self.0.load(AtomicOrdering::Relaxed)
+    }
+}
+
+impl PartialEq for Cancel {
+    fn eq(&self, o: &Cancel) -> bool {
+        Arc::ptr_eq(&self.0, &o.0)
     }
 }
 

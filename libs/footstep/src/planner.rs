@@ -6,10 +6,11 @@ use std::time::Duration;
 
 use crate::archie::steps::{self, StepParams};
 use crate::archie::{self, headings, Params};
+use crate::grid::Grid;
 use crate::kaist::search as kaist_search;
 use crate::kaist::CostParams;
 use crate::lola;
-use crate::plan::{Foot, Plan, Stats, Status};
+use crate::plan::{Cancel, Foot, Plan, Stats, Status};
 use crate::scene::{Pose, Scene};
 
 /// The planners.
@@ -60,10 +61,144 @@ fn scene_for(world: &Scene, req: &Request) -> Scene {
     }
 }
 
+impl Which {
+    /// The planner's own budget, when a request gives none: LOLA's 400 ms (the thesis's
+    /// navigation cycle), 200 ms for the others (Archie's planners take far less).
+    pub fn default_budget(self) -> Duration {
+        match self {
+            Which::Lola => Duration::from_millis(400),
+            _ => Duration::from_millis(200),
+        }
+    }
+
+    /// The growth around a plan's path within which a new obstacle makes it replan: the
+    /// planner's own obstacle growth for Archie's, half a foot for the footstep planners
+    /// (their paths run between the feet).
+    pub fn replan_inflation(self, faithful: bool) -> f64 {
+        match self {
+            Which::Archie if faithful => Params::default().inflation,
+            Which::Archie => Params::improved().inflation,
+            _ => 0.1,
+        }
+    }
+
+    /// How many feet a plan lists first where they stand: Archie's lists the standing foot,
+    /// the footstep planners both feet.
+    pub fn standing(self) -> usize {
+        if self == Which::Archie {
+            1
+        } else {
+            2
+        }
+    }
+}
+
+/// What a planner takes: requests and worlds beyond these are refused ([`Status::Refused`])
+/// before any search, so a glitch (an infinite radius, a goal a thousand kilometres away)
+/// cannot exhaust the memory or the time of the process.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Limits {
+    /// The farthest the goal may be from the start, m.
+    pub max_goal_distance: f64,
+    /// The farthest any number of the world (obstacles, surfaces, map) may be from the
+    /// origin, m; sizes at most this too.
+    pub reach: f64,
+    /// The most steps a plan may have.
+    pub max_steps: usize,
+    /// The longest budget a request may ask for.
+    pub max_budget: Duration,
+}
+
+impl Default for Limits {
+    /// 50 m to the goal, a world within 1 km, 1000 steps, a budget of 10 s.
+    fn default() -> Limits {
+        Limits {
+            max_goal_distance: 50.0,
+            reach: 1000.0,
+            max_steps: 1000,
+            max_budget: Duration::from_secs(10),
+        }
+    }
+}
+
+impl Limits {
+    /// Checks the request and its world against the limits; the error says what is beyond.
+    pub fn check(&self, req: &Request, world: &Scene, budget: Duration) -> Result<(), String> {
+        let numbers = [
+            req.start.x,
+            req.start.y,
+            req.start.yaw,
+            req.goal.x,
+            req.goal.y,
+        ];
+        if numbers.iter().any(|v| !v.is_finite()) {
+            return Err("the start or the goal is not a finite number".into());
+        }
+        let d = req.start.p().dist(req.goal.p());
+        if d > self.max_goal_distance {
+            return Err(format!(
+                "the goal is {d:.1} m away, beyond the {} m a plan may reach",
+                self.max_goal_distance
+            ));
+        }
+        if budget > self.max_budget {
+            return Err(format!(
+                "a budget of {:?} is longer than the {:?} allowed",
+                budget, self.max_budget
+            ));
+        }
+        world.check_reach(self.reach)?;
+        if req.planner != Which::Archie {
+            // The footstep planners map the world's extent (with the start and goal) onto a
+            // grid: refuse what would not fit before allocating it.
+            let (x, y, res) = Grid::extent_of(&scene_for(world, req));
+            let cells = Grid::cells_for(x, y, res);
+            if cells.is_nan() || cells > Grid::MAX_CELLS as f64 {
+                return Err(format!(
+                    "the world's map would have {cells:.0} cells, more than the {} allowed",
+                    Grid::MAX_CELLS
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Plans `req` in `world` (a scene: its obstacles, surfaces and map; its own start and goal
 /// are not used) within `budget` (Archie's planners are far below any budget and
-/// take none).
+/// take none), with the default [`Limits`] and no cancelling.
 pub fn plan(req: &Request, world: &Scene, budget: Duration) -> Plan {
+    plan_within(req, world, budget, &Limits::default(), &Cancel::new())
+}
+
+/// [`plan`] within `limits` (a request or world beyond them is refused, and so is a plan of
+/// more steps than they allow); `cancel` stops a running search ([`Status::Cancelled`]).
+pub fn plan_within(
+    req: &Request,
+    world: &Scene,
+    budget: Duration,
+    limits: &Limits,
+    cancel: &Cancel,
+) -> Plan {
+    if let Err(why) = limits.check(req, world, budget) {
+        return Plan::failed(Status::Refused, why, Stats::default());
+    }
+    let mut plan = search(req, world, budget, cancel);
+    if cancel.is_cancelled() {
+        plan.status = Status::Cancelled;
+        plan.detail = "cancelled before it finished".into();
+    } else if plan.steps.len() > limits.max_steps {
+        let why = format!(
+            "the plan has {} steps, more than the {} allowed",
+            plan.steps.len(),
+            limits.max_steps
+        );
+        return Plan::failed(Status::Refused, why, plan.stats);
+    }
+    plan
+}
+
+fn search(req: &Request, world: &Scene, budget: Duration, cancel: &Cancel) -> Plan {
     let (start, goal) = (req.start.p(), req.goal.p());
     match req.planner {
         Which::Archie => {
@@ -101,6 +236,7 @@ pub fn plan(req: &Request, world: &Scene, budget: Duration) -> Plan {
             };
             let mut s = kaist_search::Settings::new(mode, cost);
             s.budget = budget;
+            s.cancel = cancel.clone();
             if let Some(t) = req.tolerance {
                 s.tolerance = t;
             }
@@ -121,6 +257,7 @@ pub fn plan(req: &Request, world: &Scene, budget: Duration) -> Plan {
             };
             let mut s = lola::Settings::new(mode);
             s.budget = budget;
+            s.cancel = cancel.clone();
             s.horizon = req.horizon;
             s.corridor = req.corridor.or(s.corridor);
             if let Some(t) = req.tolerance {

@@ -188,7 +188,7 @@ fn b8_near_goal_and_r_a4() {
     let end = i.path.last().unwrap();
     assert!(end.dist(v2(0.5, 0.3)) < 0.1);
     // R-A4: a goal 0.5 m ahead and 30 degrees to the side.
-    let w = World::flat([-1.0, 2.0], [-1.5, 1.5]);
+    let w = World::flat([-1.0, 2.0], [-1.5, 1.5]).unwrap();
     let g = V2::polar(30f64.to_radians()) * 0.5;
     let st = Settings::new(Mode::Improved, CostParams::kaist_sim());
     let p = plan(v2(0.0, 0.0), 0.0, g, &w, Mode::Improved, &st);
@@ -275,7 +275,7 @@ fn identical_inputs_give_identical_plans() {
 
 /// A flat grid with one block of `height` over `x` × `y`.
 fn block(x: [f64; 2], y: [f64; 2], height: f64) -> World {
-    let mut g = Grid::flat([-1.0, 2.0], [-1.0, 1.0], 0.05);
+    let mut g = Grid::flat([-1.0, 2.0], [-1.0, 1.0], 0.05).unwrap();
     g.paint(
         |p| (x[0]..x[1]).contains(&p.x) && (y[0]..y[1]).contains(&p.y),
         |_| height,
@@ -339,7 +339,10 @@ fn r_a2_an_infeasible_least_cot_candidate_falls_back_to_the_next() {
             .collect::<Vec<f64>>()
     };
     // Flat: the forward subset gives its least-COT step, the longest.
-    assert_eq!(forward(&World::flat([-1.0, 2.0], [-1.0, 1.0])), vec![0.4]);
+    assert_eq!(
+        forward(&World::flat([-1.0, 2.0], [-1.0, 1.0]).unwrap()),
+        vec![0.4]
+    );
     // A 0.2 m block where that step would land (and the next, 0.35 m): 0.30 m, whose toe
     // stops short of it.
     let w = block([0.4, 0.6], [-0.3, 0.0], 0.2);
@@ -351,7 +354,7 @@ fn r_a2_an_infeasible_least_cot_candidate_falls_back_to_the_next() {
 #[test]
 fn deadline_an_unreachable_goal_answers_with_the_best_partial_plan() {
     // The goal inside a closed ring of walls.
-    let mut g = Grid::flat([-1.0, 4.0], [-2.0, 2.0], 0.05);
+    let mut g = Grid::flat([-1.0, 4.0], [-2.0, 2.0], 0.05).unwrap();
     g.paint(
         |p| {
             let r = p.dist(v2(3.0, 0.0));
@@ -381,7 +384,7 @@ fn deadline_an_unreachable_goal_answers_with_the_best_partial_plan() {
 fn a_goal_up_a_flight_of_low_steps() {
     // Risers of 5 cm up to a 0.2 m landing: the goal on it is not "in collision", the robot
     // climbs there, and no bound is claimed (the 2-D field counts the landing as tall).
-    let mut g = Grid::flat([-1.0, 3.5], [-1.0, 1.0], 0.05);
+    let mut g = Grid::flat([-1.0, 3.5], [-1.0, 1.0], 0.05).unwrap();
     for (k, h) in [0.05, 0.10, 0.15].iter().enumerate() {
         let x0 = 1.0 + 0.2 * k as f64;
         g.paint(|p| (x0..x0 + 0.2).contains(&p.x), |_| *h);

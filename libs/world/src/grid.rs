@@ -65,6 +65,20 @@ pub enum GridError {
         /// What went wrong.
         error: std::io::Error,
     },
+    /// The grid would be too large (or its extent is not finite).
+    #[error("a map of {x:?} x {y:?} m at {res} m would have {cells:.0} cells, more than the {max} allowed")]
+    TooLarge {
+        /// Its x extent.
+        x: [f64; 2],
+        /// Its y extent.
+        y: [f64; 2],
+        /// Its resolution.
+        res: f64,
+        /// The cells it would have (infinite or NaN when the extent is not finite).
+        cells: f64,
+        /// [`Grid::MAX_CELLS`].
+        max: usize,
+    },
     /// The elevation file is malformed.
     #[error("elevation file {path}, line {line}: {why}")]
     Format {
@@ -78,17 +92,38 @@ pub enum GridError {
 }
 
 impl Grid {
-    /// Flat ground at height 0 over `x` × `y`.
-    pub fn flat(x: [f64; 2], y: [f64; 2], res: f64) -> Grid {
-        let nx = ((x[1] - x[0]) / res).round().max(1.0) as usize;
-        let ny = ((y[1] - y[0]) / res).round().max(1.0) as usize;
-        Grid {
+    /// The most cells a grid may have (32 MB of heights: 100 m x 100 m at 0.05 m).
+    pub const MAX_CELLS: usize = 4_000_000;
+
+    /// The cells a grid over `x` × `y` at `res` would have (not finite for an extent that is
+    /// not).
+    pub fn cells_for(x: [f64; 2], y: [f64; 2], res: f64) -> f64 {
+        let n = |a: f64, b: f64| ((b - a) / res).round().max(1.0);
+        n(x[0], x[1]) * n(y[0], y[1])
+    }
+
+    /// Flat ground at height 0 over `x` × `y`; refused beyond [`Grid::MAX_CELLS`] cells or
+    /// for an extent that is not finite.
+    pub fn flat(x: [f64; 2], y: [f64; 2], res: f64) -> Result<Grid, GridError> {
+        let cells = Grid::cells_for(x, y, res);
+        if !(cells.is_finite() && res > 0.0 && cells <= Grid::MAX_CELLS as f64) {
+            return Err(GridError::TooLarge {
+                x,
+                y,
+                res,
+                cells,
+                max: Grid::MAX_CELLS,
+            });
+        }
+        let n = |a: f64, b: f64| ((b - a) / res).round().max(1.0) as usize;
+        let (nx, ny) = (n(x[0], x[1]), n(y[0], y[1]));
+        Ok(Grid {
             origin: v2(x[0], y[0]),
             res,
             nx,
             ny,
             h: vec![0.0; nx * ny],
-        }
+        })
     }
 
     /// The grid of a scene: its map (or its bounding box grown by [`MARGIN`]) at its
@@ -96,7 +131,7 @@ impl Grid {
     /// then the obstacles' tops over their footprints.
     pub fn of_scene(scene: &Scene) -> Result<Grid, GridError> {
         let (x, y, res) = Grid::extent_of(scene);
-        let mut g = Grid::flat(x, y, res);
+        let mut g = Grid::flat(x, y, res)?;
         if let Some(file) = scene.map.as_ref().and_then(|m| m.elevation.as_ref()) {
             let path = scene.dir.join(file);
             g.load_elevation(&path)?;
@@ -459,7 +494,7 @@ mod tests {
 
     #[test]
     fn cells_and_heights() {
-        let mut g = Grid::flat([0.0, 1.0], [0.0, 0.5], 0.05);
+        let mut g = Grid::flat([0.0, 1.0], [0.0, 0.5], 0.05).unwrap();
         assert_eq!((g.nx, g.ny), (20, 10));
         g.paint(|p| p.x > 0.5, |_| 0.2);
         assert_eq!(g.height(v2(0.52, 0.1)), 0.2);
@@ -497,7 +532,7 @@ mod tests {
 
     #[test]
     fn distance_field_goes_around_a_wall() {
-        let mut g = Grid::flat([0.0, 4.0], [-2.0, 2.0], 0.05);
+        let mut g = Grid::flat([0.0, 4.0], [-2.0, 2.0], 0.05).unwrap();
         g.paint(|p| (1.5..1.8).contains(&p.x) && p.y.abs() < 1.0, |_| 1.0);
         let d = g.distance_field(v2(3.5, 0.0), |h| h < 0.15);
         let at = |p: V2| {

@@ -118,6 +118,67 @@ pub enum Obstacle {
 }
 
 impl Obstacle {
+    /// Every number that describes it (coordinates, sizes, heights).
+    pub fn numbers(&self) -> Vec<f64> {
+        match self {
+            Obstacle::Circle {
+                x,
+                y,
+                radius,
+                height,
+                base,
+            } => [*x, *y, *radius, height.unwrap_or(0.0), *base].to_vec(),
+            Obstacle::Box {
+                x,
+                y,
+                yaw,
+                length,
+                width,
+                height,
+                base,
+            } => [*x, *y, *yaw, *length, *width, height.unwrap_or(0.0), *base].to_vec(),
+            Obstacle::Polygon {
+                points,
+                height,
+                base,
+            } => points
+                .iter()
+                .flatten()
+                .copied()
+                .chain([height.unwrap_or(0.0), *base])
+                .collect(),
+            Obstacle::Sphere { centre, radius } => {
+                centre.iter().copied().chain([*radius]).collect()
+            }
+            Obstacle::Capsule { a, b, radius } => {
+                a.iter().chain(b).copied().chain([*radius]).collect()
+            }
+            Obstacle::RoundedTriangle { points, radius } => {
+                points.iter().flatten().copied().chain([*radius]).collect()
+            }
+        }
+    }
+
+    /// Checks that it is made of finite numbers within `reach` m of the origin (sizes at
+    /// most `reach` too): a mapper's glitch (an infinite or huge radius, a NaN centre) is
+    /// refused, not planned around.
+    pub fn check(&self, reach: f64) -> Result<(), String> {
+        for v in self.numbers() {
+            if !v.is_finite() {
+                return Err(format!("{v} is not a finite number"));
+            }
+            if v.abs() > reach {
+                return Err(format!("{v} is beyond the world's reach of {reach} m"));
+            }
+        }
+        if let Obstacle::Polygon { points, .. } = self {
+            if points.len() < 3 {
+                return Err(format!("a polygon of {} points", points.len()));
+            }
+        }
+        Ok(())
+    }
+
     /// Its footprint as a convex polygon (counter-clockwise), or `None` for a circle or a
     /// sphere. Capsules and rounded triangles come as their hull circumscribed by a 16-gon per
     /// rounded end, so the polygon covers the shape.
@@ -344,6 +405,44 @@ pub enum SceneError {
 }
 
 impl Scene {
+    /// The farthest from the origin a scene file's numbers may be, m.
+    pub const REACH: f64 = 10_000.0;
+
+    /// Checks every number of the scene (start, goal, obstacles, surfaces, map) is finite and
+    /// within `reach` m of the origin; the error names the first that is not.
+    pub fn check_reach(&self, reach: f64) -> Result<(), String> {
+        let bad = |what: String, v: f64| -> Result<(), String> {
+            if !v.is_finite() {
+                Err(format!("{what}: {v} is not a finite number"))
+            } else if v.abs() > reach {
+                Err(format!(
+                    "{what}: {v} is beyond the world's reach of {reach} m"
+                ))
+            } else {
+                Ok(())
+            }
+        };
+        for (what, p) in [("start", &self.start), ("goal", &self.goal)] {
+            for v in [p.x, p.y, p.z, p.yaw] {
+                bad(what.into(), v)?;
+            }
+        }
+        for (i, o) in self.obstacle.iter().enumerate() {
+            o.check(reach).map_err(|e| format!("obstacle {i}: {e}"))?;
+        }
+        for s in &self.surface {
+            for v in s.points.iter().flatten().chain([&s.height]) {
+                bad(format!("surface {}", s.name), *v)?;
+            }
+        }
+        if let Some(m) = &self.map {
+            for v in m.x.iter().chain(&m.y).chain(&m.resolution) {
+                bad("map".into(), *v)?;
+            }
+        }
+        Ok(())
+    }
+
     /// Reads a scene file.
     pub fn load(path: &std::path::Path) -> Result<Scene, SceneError> {
         let p = path.display().to_string();
@@ -377,6 +476,7 @@ impl Scene {
     }
 
     fn check(&self) -> Result<(), String> {
+        self.check_reach(Scene::REACH)?;
         for (i, s) in self.surface.iter().enumerate() {
             if !(3..=8).contains(&s.points.len()) {
                 return Err(format!(

@@ -33,7 +33,7 @@ use crate::archie::steps::FOOT;
 use crate::geom::{v2, wrap, V2};
 use crate::grid::{Grid, GridError, GRID_DETOUR};
 use crate::kaist::{self, Action, CostParams, Subset};
-use crate::plan::{anytime_passes, Entry, Foot, Plan, Stats, Status};
+use crate::plan::{anytime_passes, Cancel, Entry, Foot, Plan, Stats, Status};
 use crate::scene::Scene;
 
 /// Which planner.
@@ -114,6 +114,8 @@ pub struct Settings {
     pub max_expansions: u64,
     /// Time budget (improved mode).
     pub budget: Duration,
+    /// Set to stop the search at once (it answers as at its budget).
+    pub cancel: Cancel,
     /// The heuristic.
     pub heuristic: Heuristic,
     /// How candidates become successors.
@@ -147,6 +149,7 @@ impl Settings {
             full_set_radius: 0.6,
             max_expansions: if thesis { 2000 } else { 200_000 },
             budget: Duration::from_millis(if thesis { 10_000 } else { 200 }),
+            cancel: Cancel::default(),
             heuristic: if thesis {
                 Heuristic::EuclidAngle
             } else {
@@ -182,10 +185,10 @@ impl World {
     }
 
     /// Flat ground over `x` × `y` (0.05 m cells).
-    pub fn flat(x: [f64; 2], y: [f64; 2]) -> World {
-        World {
-            grid: Grid::flat(x, y, 0.05),
-        }
+    pub fn flat(x: [f64; 2], y: [f64; 2]) -> Result<World, GridError> {
+        Ok(World {
+            grid: Grid::flat(x, y, 0.05)?,
+        })
     }
 
     /// The height a foot at `f` rests on, if it may stand there with the stance foot at
@@ -592,8 +595,13 @@ fn pass(
         if stats.expansions >= s.max_expansions {
             return (Pass::Stopped("the expansion cap was reached"), nodes);
         }
-        if stats.expansions.is_multiple_of(64) && Instant::now() > deadline {
-            return (Pass::Stopped("the time budget ran out"), nodes);
+        if stats.expansions.is_multiple_of(64) {
+            if s.cancel.is_cancelled() {
+                return (Pass::Stopped("cancelled"), nodes);
+            }
+            if Instant::now() > deadline {
+                return (Pass::Stopped("the time budget ran out"), nodes);
+            }
         }
         stats.expansions += 1;
         // Each successor: its steps, and its heuristic when already known.

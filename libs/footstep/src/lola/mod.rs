@@ -39,7 +39,7 @@ use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 
 use crate::geom::{convex_overlap, foot_cspace, rectangle, v2, wrap, V2};
 use crate::grid::{Grid, GRID_DETOUR};
-use crate::plan::{anytime_passes, Entry, Foot, Plan, Stats, Status};
+use crate::plan::{anytime_passes, Cancel, Entry, Foot, Plan, Stats, Status};
 use crate::scene::{Obstacle, Scene};
 use crate::ssv::{overlaps, Solid, P3};
 use preplan::{preplan, Reduced, Way};
@@ -127,6 +127,8 @@ pub struct Settings {
     pub horizon: Option<usize>,
     /// Time budget.
     pub budget: Duration,
+    /// Set to stop the search at once (it answers as at its budget).
+    pub cancel: Cancel,
     /// Expansion cap.
     pub max_expansions: u64,
     /// Margin of the distance field's point robot around tall obstacles, m (the thesis's
@@ -168,6 +170,7 @@ impl Settings {
             tolerance: (0.1, 0.1),
             horizon: None,
             budget: Duration::from_millis(400),
+            cancel: Cancel::default(),
             max_expansions: 1_000_000,
             margin: 0.1,
             heading_margin: 0.25,
@@ -808,45 +811,48 @@ pub fn plan_from(
                 .next()
         })
         .flatten();
-    let field = (coupled && s.preplanner == PrePlanner::Field).then(|| {
-        let mut g = Grid::flat(world.map.0, world.map.1, 0.05);
-        // The reduced map: the obstacles too tall to step over (surfaces' edges are not
-        // obstacles here).
-        let tall: Vec<&Thing> = world
-            .things
-            .iter()
-            .filter(|t| !t.edge && t.top - t.aabb.mins.z.max(0.0) > r.h_max)
-            .collect();
-        // Cells within the heading margin hold 1, within the margin 2.
-        let near = |p: V2, grow: f64| {
-            tall.iter().any(|t| {
-                t.aabb.mins.x - grow <= p.x
-                    && p.x <= t.aabb.maxs.x + grow
-                    && t.aabb.mins.y - grow <= p.y
-                    && p.y <= t.aabb.maxs.y + grow
-                    && t.solid.footprint_distance(p) < grow
-            })
-        };
-        let wide = s.couple_heading && s.heading_margin > s.margin;
-        if wide {
-            g.paint(|p| near(p, s.heading_margin), |_| 1.0);
-        }
-        g.paint(|p| near(p, s.margin), |_| 2.0);
-        let d = g.distance_field(goal, |h| h < 2.0);
-        let heading = wide.then(|| g.distance_field(goal, |h| h == 0.0));
-        // Coupling 2: the distance from the way the robot's centre would take.
-        // (None when the centre has no way: the corridor is then off.)
-        let corridor = s.corridor.and_then(|_| {
-            let way = g.way(&d, (stance.p + swing.p) * 0.5, f64::INFINITY);
-            (!way.is_empty()).then(|| g.distance_from(&way, |_| true))
+    // A map too large for a grid has no field (the planner refuses such worlds first).
+    let field = (coupled && s.preplanner == PrePlanner::Field)
+        .then(|| Grid::flat(world.map.0, world.map.1, 0.05).ok())
+        .flatten()
+        .map(|mut g| {
+            // The reduced map: the obstacles too tall to step over (surfaces' edges are not
+            // obstacles here).
+            let tall: Vec<&Thing> = world
+                .things
+                .iter()
+                .filter(|t| !t.edge && t.top - t.aabb.mins.z.max(0.0) > r.h_max)
+                .collect();
+            // Cells within the heading margin hold 1, within the margin 2.
+            let near = |p: V2, grow: f64| {
+                tall.iter().any(|t| {
+                    t.aabb.mins.x - grow <= p.x
+                        && p.x <= t.aabb.maxs.x + grow
+                        && t.aabb.mins.y - grow <= p.y
+                        && p.y <= t.aabb.maxs.y + grow
+                        && t.solid.footprint_distance(p) < grow
+                })
+            };
+            let wide = s.couple_heading && s.heading_margin > s.margin;
+            if wide {
+                g.paint(|p| near(p, s.heading_margin), |_| 1.0);
+            }
+            g.paint(|p| near(p, s.margin), |_| 2.0);
+            let d = g.distance_field(goal, |h| h < 2.0);
+            let heading = wide.then(|| g.distance_field(goal, |h| h == 0.0));
+            // Coupling 2: the distance from the way the robot's centre would take.
+            // (None when the centre has no way: the corridor is then off.)
+            let corridor = s.corridor.and_then(|_| {
+                let way = g.way(&d, (stance.p + swing.p) * 0.5, f64::INFINITY);
+                (!way.is_empty()).then(|| g.distance_from(&way, |_| true))
+            });
+            Field {
+                grid: g,
+                dist: d,
+                heading,
+                corridor,
+            }
         });
-        Field {
-            grid: g,
-            dist: d,
-            heading,
-            corridor,
-        }
-    });
     let pr = Problem {
         world,
         s,
@@ -1031,6 +1037,10 @@ fn pass(
         if stats.expansions >= s.max_expansions {
             finish(nodes, best_here, best);
             return Pass::Stopped("the expansion cap was reached");
+        }
+        if stats.expansions.is_multiple_of(16) && pr.s.cancel.is_cancelled() {
+            finish(nodes, best_here, best);
+            return Pass::Stopped("cancelled");
         }
         if stats.expansions.is_multiple_of(16) && Instant::now() > deadline {
             finish(nodes, best_here, best);
