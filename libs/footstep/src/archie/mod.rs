@@ -8,17 +8,33 @@
 //!   stays: a waypoint is where two tangents meet, which overshoots when they are nearly
 //!   parallel (the case-9 detour). Where the thesis is silent, it drops a child the leaf
 //!   cannot reach without entering another obstacle.
+//!
+//!   What the tree cannot do, as the thesis's algorithm (§2.6.4) cannot either: it looks at
+//!   one circle at a time, so a wall of overlapping circles across the way to the goal (the
+//!   centres (2, −0.5), (2, 0), (2, 0.5), radius 0.3 to 0.5 m, from the origin to (4, 0))
+//!   puts every child inside a neighbouring circle; step 2.4 deletes them all and the search
+//!   ends with no path, where the exact planner goes round in 4.40 to 4.59 m. The thesis's
+//!   own walls (cases 4 to 11) run along the way, not across it, so its tests never met this.
+//!   Its overshoot is not bounded either: beside the documented case-9 detour of about
+//!   0.5 m, a field of six random circles (the test
+//!   `the_faithful_trees_failures_are_as_documented`) gives 795.4 m against an optimum of
+//!   5.08 m, a waypoint far out where two tangents meet almost parallel.
 //! - [`plan_exact`], improved: the exact shortest path among the same circles, on the tangent
 //!   graph (tangents from start and goal, bitangents between circles, arcs along them), by
 //!   Dijkstra; arcs become waypoints on a polygon circumscribed about the circle, so the path
-//!   never enters it and is at most a fraction of a percent longer than the exact optimum.
+//!   never enters it and is at most a fraction of a percent longer than the exact optimum
+//!   (its sides are refined where the polygon would cut into another circle the arc passes
+//!   near). An obstacle reported twice, or inside another, counts once ([`distinct`]); two
+//!   circles that touch leave no way between them.
 
 pub mod steps;
 
 use std::collections::BinaryHeap;
 use std::time::{Duration, Instant};
 
-use crate::geom::{line_intersection, path_length, v2, wrap, Circle, EPS, V2};
+use crate::geom::{
+    line_intersection, path_length, point_segment_distance, v2, wrap, Circle, EPS, V2,
+};
 use crate::plan::{Least, Plan, Stats, Status};
 
 /// Settings of Archie's planner.
@@ -268,12 +284,18 @@ fn covered(ci: &Circle, cj: &Circle) -> Option<(f64, f64)> {
 
 /// True when the arc of circle `i` from angle `a`, going `ccw` (or clockwise) by `sweep`
 /// radians, passes inside another circle.
-fn arc_blocked(circles: &[Circle], i: usize, a: f64, sweep: f64, ccw: bool) -> bool {
+fn arc_blocked(circles: &[Circle], i: usize, a: f64, sweep: f64, ccw: bool, grow: f64) -> bool {
     circles.iter().enumerate().any(|(j, cj)| {
         if j == i {
             return false;
         }
-        let Some((mid, half)) = covered(&circles[i], cj) else {
+        // The other circle grown by how far the arc's polygon bulges out of its own: an arc
+        // grazing (or touching) another circle would take its polygon inside it.
+        let grown = Circle {
+            c: cj.c,
+            r: cj.r + grow,
+        };
+        let Some((mid, half)) = covered(&circles[i], &grown) else {
             return false;
         };
         if half >= std::f64::consts::PI - EPS {
@@ -291,12 +313,33 @@ fn arc_blocked(circles: &[Circle], i: usize, a: f64, sweep: f64, ccw: bool) -> b
     })
 }
 
-/// The exact shortest path from `start` to `goal` among the circles (already inflated), as
-/// the graph's node sequence and edge kinds, with its length.
+/// The circles that matter: one of each pair of identical circles, and none that lies inside
+/// another (a mapper that reports an obstacle twice changes nothing).
+pub fn distinct(circles: &[Circle]) -> Vec<Circle> {
+    // k lies in m (within a micrometre); of two that lie in each other the later one goes.
+    let within = |k: usize, m: usize| {
+        let (a, b) = (circles[k], circles[m]);
+        a.c.dist(b.c) + a.r <= b.r + 1e-6
+    };
+    let inside = |k: usize, m: usize| within(k, m) && (!within(m, k) || m < k);
+    (0..circles.len())
+        .filter(|&k| !(0..circles.len()).any(|m| m != k && inside(k, m)))
+        .map(|k| circles[k])
+        .collect()
+}
+
+/// Closer than this, two circles touch: an arc passing there would squeeze through a gap of
+/// no width.
+const TOUCH: f64 = 1e-6;
+
+/// The exact shortest path from `start` to `goal` among the circles (already inflated, and
+/// [`distinct`]), as the graph's node sequence and edge kinds, with its length. An arc may
+/// not pass within `grow` of another circle.
 fn tangent_graph_path(
     start: V2,
     goal: V2,
     circles: &[Circle],
+    grow: f64,
     stats: &mut Stats,
 ) -> Option<(Vec<GNode>, Vec<Way>, f64)> {
     let mut nodes = vec![GNode { p: start, on: None }, GNode { p: goal, on: None }];
@@ -360,8 +403,9 @@ fn tangent_graph_path(
                     pairs.push((a.c + n * a.r, b.c + n * b.r));
                 }
             }
-            // Inner tangents: only between disjoint circles.
-            if d > a.r + b.r {
+            // Inner tangents: only between disjoint circles (touching ones leave no way
+            // between them).
+            if d > a.r + b.r + EPS {
                 let t = ((a.r + b.r) / d).acos();
                 for s in [1.0, -1.0] {
                     let n = V2::polar(base + s * t);
@@ -402,7 +446,7 @@ fn tangent_graph_path(
                 edges[n1].push((n0, 0.0, Way::Straight));
                 continue;
             }
-            if arc_blocked(circles, i, a0, sweep, true) {
+            if arc_blocked(circles, i, a0, sweep, true, grow) {
                 continue;
             }
             let len = sweep * c.r;
@@ -454,12 +498,12 @@ fn tangent_graph_path(
 /// length as returned (waypoints outside the circles); [`exact_length`] gives the optimum.
 pub fn plan_exact(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> Plan {
     let t0 = Instant::now();
-    let circles = inflate(obstacles, p.inflation);
+    let circles = distinct(&inflate(obstacles, p.inflation));
     let mut stats = Stats::default();
     if let Err(plan) = check_ends(start, goal, &circles, stats) {
         return *plan;
     }
-    let Some((seq, ways, _)) = tangent_graph_path(start, goal, &circles, &mut stats) else {
+    let Some((seq, ways, _)) = tangent_graph_path(start, goal, &circles, TOUCH, &mut stats) else {
         stats.search = t0.elapsed();
         return Plan::failed(
             Status::NoPath,
@@ -481,12 +525,34 @@ pub fn plan_exact(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> Plan
             } else {
                 -(a0 - a1).rem_euclid(std::f64::consts::TAU)
             };
-            let m = (sweep.abs() / p.arc_step).ceil().max(1.0) as usize;
-            let step = sweep / m as f64;
-            let r = c.r / (step / 2.0).cos();
-            for s in 0..m {
-                path.push(c.c + V2::polar(a0 + step * (s as f64 + 0.5)) * r);
+            // Sides of at most arc_step, fewer than needed where the polygon would cut into
+            // another circle the arc passes near: then halved until it does not.
+            let mut m = (sweep.abs() / p.arc_step).ceil().max(1.0) as usize;
+            let polygon = |m: usize| {
+                let step = sweep / m as f64;
+                let r = c.r / (step / 2.0).cos();
+                (0..m)
+                    .map(|s| c.c + V2::polar(a0 + step * (s as f64 + 0.5)) * r)
+                    .collect::<Vec<V2>>()
+            };
+            let mut pts = polygon(m);
+            let enters = |pts: &[V2]| {
+                std::iter::once(a.p)
+                    .chain(pts.iter().copied())
+                    .chain([b.p])
+                    .collect::<Vec<V2>>()
+                    .windows(2)
+                    .any(|w| {
+                        circles.iter().enumerate().any(|(j, o)| {
+                            j != i && point_segment_distance(o.c, w[0], w[1]) < o.r - 1e-9
+                        })
+                    })
+            };
+            while enters(&pts) && m < 1 << 16 {
+                m *= 2;
+                pts = polygon(m);
             }
+            path.extend(pts);
         }
         path.push(b.p);
     }
@@ -528,8 +594,8 @@ fn simplify(path: &[V2]) -> Vec<V2> {
 /// The length of the exact shortest path among the inflated circles (arcs included), or
 /// `None` when there is none.
 pub fn exact_length(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> Option<f64> {
-    let circles = inflate(obstacles, p.inflation);
-    tangent_graph_path(start, goal, &circles, &mut Stats::default()).map(|(_, _, d)| d)
+    let circles = distinct(&inflate(obstacles, p.inflation));
+    tangent_graph_path(start, goal, &circles, TOUCH, &mut Stats::default()).map(|(_, _, d)| d)
 }
 
 /// Headings of the path's segments: the heading at each waypoint is that of the segment that
