@@ -134,11 +134,14 @@ pub fn print_table(rows: &mut [Row], repeats: usize, budget: Duration) -> std::i
     outln!("| scene | thesis: status | cost | steps | expansions | preparation | p50 / p99 | improved: status | cost | / thesis | steps | expansions to first plan | / thesis | first plan p50 / p99 | bound at the budget | expansions | p50 / p99 | the thesis reports |")?;
     outln!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")?;
     let (mut worse, mut over_half, mut slow_p50, mut slow_p99, mut fails) = (0, 0, 0, 0, 0);
+    // How many comparisons each verdict rests on, and the refusals that were right.
+    let (mut cost_pairs, mut exp_pairs, mut refusals) = (0, 0, 0);
     let mut worst_first = (0.0f64, 0.0f64);
     for pair in rows.chunks_mut(2) {
         let [t, i] = pair else { continue };
         let ok = |p: &Plan| p.status == Status::Ok;
         let vs_cost = if ok(&t.plan) && ok(&i.plan) {
+            cost_pairs += 1;
             let r = i.plan.cost / t.plan.cost;
             if r > 1.005 {
                 worse += 1;
@@ -150,6 +153,7 @@ pub fn print_table(rows: &mut [Row], repeats: usize, budget: Duration) -> std::i
         let first_exp = i.plan.stats.first_plan_expansions;
         let vs_exp = match (ok(&t.plan), first_exp) {
             (true, Some(e)) => {
+                exp_pairs += 1;
                 let r = e as f64 / t.plan.stats.expansions as f64;
                 if r > 0.5 {
                     over_half += 1;
@@ -159,7 +163,16 @@ pub fn print_table(rows: &mut [Row], repeats: usize, budget: Duration) -> std::i
             _ => "—".into(),
         };
         let horizon = i.plan.status == Status::Partial && i.plan.detail == "the horizon";
-        if !ok(&i.plan) && !horizon && i.plan.status != Status::GoalOutsideMap {
+        // A refusal is right when the goal is in collision or outside the map, or when
+        // neither mode found a way; a failure is the improved mode without a plan where the
+        // thesis's found one, or out of budget.
+        let refusal = matches!(
+            i.plan.status,
+            Status::GoalInCollision | Status::StartInCollision | Status::GoalOutsideMap
+        ) || (i.plan.status == Status::NoPath && !ok(&t.plan));
+        if refusal {
+            refusals += 1;
+        } else if !ok(&i.plan) && !horizon {
             fails += 1;
         }
         let (f50, f99) = (pct(&mut i.first, 50.0), pct(&mut i.first, 99.0));
@@ -205,13 +218,23 @@ pub fn print_table(rows: &mut [Row], repeats: usize, budget: Duration) -> std::i
         )?;
     }
     outln!()?;
+    let of = |n: usize, pairs: usize| {
+        if pairs == 0 {
+            format!("not shown (0 of {} scenes comparable)", rows.len() / 2)
+        } else {
+            format!("{n} of {pairs} comparable")
+        }
+    };
     outln!(
-        "{} scenes, {repeats} runs each, budget {} ms: improved failures where a path exists {fails}; \
-         dearer than the thesis's plan by over 0.5 % {worse}; first plan needing over half the \
-         thesis's expansions {over_half}; first plan p50 over 10 ms {slow_p50} (worst {}), p99 \
-         over 50 ms {slow_p99} (worst {}).",
+        "{} scenes, {repeats} runs each, budget {} ms: improved failures {fails}, right refusals \
+         (goal in collision or outside the map, no way in either mode) {refusals}; dearer than \
+         the thesis's plan by over 0.5 %: {}; first plan needing over half the thesis's \
+         expansions: {}; first plan p50 over 10 ms {slow_p50} (worst {}), p99 over 50 ms \
+         {slow_p99} (worst {}).",
         rows.len() / 2,
         budget.as_millis(),
+        of(worse, cost_pairs),
+        of(over_half, exp_pairs),
         ms(worst_first.0),
         ms(worst_first.1),
     )?;

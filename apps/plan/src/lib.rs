@@ -203,11 +203,15 @@ pub fn run(cli: Cli) -> anyhow::Result<std::process::ExitCode> {
         } else {
             for r in rows.iter() {
                 outln!(
-                    "{:<18} {:<9} {:<10} cost {:>9.2} {:>3} steps {:>7} expansions bound {}",
+                    "{:<18} {:<9} {:<10} cost {:>9} {:>3} steps {:>7} expansions bound {}",
                     r.scene,
                     r.mode,
                     r.plan.status.name(),
-                    r.plan.cost,
+                    if r.plan.cost.is_finite() {
+                        format!("{:.2}", r.plan.cost)
+                    } else {
+                        "—".into()
+                    },
                     r.plan.steps.len().saturating_sub(2),
                     r.plan.stats.expansions,
                     r.plan.bound.map_or("-".into(), |b| b.to_string()),
@@ -228,13 +232,20 @@ pub fn run(cli: Cli) -> anyhow::Result<std::process::ExitCode> {
         print_table(&rows, cli.repeats)?;
     } else {
         for r in &rows {
+            let metres = |v: f64| {
+                if v.is_finite() {
+                    format!("{v:.3} m")
+                } else {
+                    "—".into()
+                }
+            };
             outln!(
-                "{:<12} {:<9} {:<10} length {:>7.3} m (optimum {:.3}) {:>3} steps {:>6} expansions {:>9.1} µs",
+                "{:<12} {:<9} {:<10} length {:>9} (optimum {}) {:>3} steps {:>6} expansions {:>9.1} µs",
                 r.scene,
                 r.mode,
                 r.plan.status.name(),
-                r.plan.cost,
-                r.optimum,
+                metres(r.plan.cost),
+                metres(r.optimum),
                 r.steps,
                 r.plan.stats.expansions,
                 r.p50_us
@@ -281,47 +292,83 @@ fn write_csv(path: &Path, rows: &[Row]) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A length or ratio for the table; "—" where there is none (a failed plan).
+fn cell(v: f64, digits: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.digits$}")
+    } else {
+        "—".into()
+    }
+}
+
 fn print_table(rows: &[Row], repeats: usize) -> std::io::Result<()> {
     outln!("| scene | faithful: length (m) | steps | expansions | p50 / p99 | improved, same obstacles: length (m) | / faithful | / optimum | expansions | p50 / p99 | improved (0.215 m growth): length (m) | / its optimum | steps | p50 / p99 |")?;
     outln!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")?;
     for t in rows.chunks(3) {
         let (f, s, i) = (&t[0], &t[1], &t[2]);
         outln!(
-            "| {} | {:.3} | {} | {} | {:.0} / {:.0} µs | {:.3} | {:.4} | {:.4} | {} | {:.0} / {:.0} µs | {:.3} | {:.4} | {} | {:.0} / {:.0} µs |",
+            "| {} | {} | {} | {} | {:.0} / {:.0} µs | {} | {} | {} | {} | {:.0} / {:.0} µs | {} | {} | {} | {:.0} / {:.0} µs |",
             f.scene,
-            f.plan.cost,
+            cell(f.plan.cost, 3),
             f.steps,
             f.plan.stats.expansions,
             f.p50_us,
             f.p99_us,
-            s.plan.cost,
-            s.plan.cost / f.plan.cost,
-            s.plan.cost / s.optimum,
+            cell(s.plan.cost, 3),
+            cell(s.plan.cost / f.plan.cost, 4),
+            cell(s.plan.cost / s.optimum, 4),
             s.plan.stats.expansions,
             s.p50_us,
             s.p99_us,
-            i.plan.cost,
-            i.plan.cost / i.optimum,
+            cell(i.plan.cost, 3),
+            cell(i.plan.cost / i.optimum, 4),
             i.steps,
             i.p50_us,
             i.p99_us
         )?;
     }
-    let failures = rows.iter().filter(|r| r.plan.status != Status::Ok).count();
+    // A refusal is right when an end is in collision or no way exists (no optimum).
+    let refused = |r: &Row| {
+        matches!(
+            r.plan.status,
+            Status::GoalInCollision | Status::StartInCollision
+        ) || (r.plan.status == Status::NoPath && !r.optimum.is_finite())
+    };
+    let refusals = rows.iter().filter(|r| refused(r)).count();
+    let failures = rows
+        .iter()
+        .filter(|r| r.plan.status != Status::Ok && !refused(r))
+        .count();
     let improved = || rows.iter().filter(|r| r.mode != "faithful");
     let worst_p50 = improved().map(|r| r.p50_us).fold(0.0, f64::max);
     let worst_p99 = improved().map(|r| r.p99_us).fold(0.0, f64::max);
-    let worst_opt = improved()
+    let finite = |v: &f64| v.is_finite();
+    let opt: Vec<f64> = improved()
         .map(|r| r.plan.cost / r.optimum)
-        .fold(0.0, f64::max);
-    let worst_vs = rows
+        .filter(finite)
+        .collect();
+    let vs: Vec<f64> = rows
         .chunks(3)
         .map(|t| t[1].plan.cost / t[0].plan.cost)
-        .fold(0.0, f64::max);
+        .filter(finite)
+        .collect();
+    let worst = |v: &[f64], n: usize| {
+        if v.is_empty() {
+            format!("not shown (0 of {n} comparable)")
+        } else {
+            format!(
+                "{:.4} ({} of {n} comparable)",
+                v.iter().copied().fold(0.0, f64::max),
+                v.len()
+            )
+        }
+    };
     outln!()?;
     outln!(
-        "{} plans, {repeats} runs each: {failures} failures. Improved modes: worst p50 {worst_p50:.0} µs (bar < 10 000), worst p99 {worst_p99:.0} µs (bar < 50 000), worst length over the optimum {worst_opt:.4} (bar < 1.01); on the same obstacles, worst length over faithful {worst_vs:.4} (bar ≤ 1.005).",
-        rows.len()
+        "{} plans, {repeats} runs each: {failures} failures, {refusals} right refusals (an end in collision, or no way at all). Improved modes: worst p50 {worst_p50:.0} µs (bar < 10 000), worst p99 {worst_p99:.0} µs (bar < 50 000), worst length over the optimum {} (bar < 1.01); on the same obstacles, worst length over faithful {} (bar ≤ 1.005).",
+        rows.len(),
+        worst(&opt, improved().count()),
+        worst(&vs, rows.len() / 3),
     )?;
     Ok(())
 }
