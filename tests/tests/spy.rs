@@ -4,7 +4,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use lcm::Lcm;
-use stride_lcmtypes::stride::{HeaderT, PingT};
+use stride_lcmtypes::stride::{HeaderT, ImuT, PingT};
 use stride_tests::{bin, in_sandbox, udpm_url, Proc};
 
 fn ping(seq: i64) -> PingT {
@@ -64,6 +64,62 @@ fn echo_prints_decoded_json_lines() {
         assert_eq!(l["channel"], "SPY_PING");
         assert_eq!(l["type"], "stride.ping_t");
         assert_eq!(l["message"]["payload"], serde_json::json!([9, 8]));
+    }
+}
+
+#[test]
+fn echo_keeps_nan_and_infinities_apart_in_declaration_order() {
+    if !in_sandbox() {
+        return;
+    }
+    let url = udpm_url(7744);
+    let lcm = Lcm::new(&url).unwrap();
+    let mut c = Command::new(bin("stride-spy"));
+    c.args([
+        "--lcm-url",
+        &url,
+        "echo",
+        "--channel",
+        "SPY_IMU",
+        "--count",
+        "2",
+    ]);
+    let imu = ImuT {
+        orientation: [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.5],
+        temperature: f32::NAN,
+        ..Default::default()
+    };
+    let out = publish_until_done(&lcm, Proc::spawn(c), |lcm, _| {
+        lcm.publish("SPY_IMU", &imu).unwrap();
+    });
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 2, "{out}");
+    for l in lines {
+        let v: serde_json::Value = serde_json::from_str(l).expect("a JSON line");
+        let m = &v["message"];
+        assert_eq!(
+            m["orientation"],
+            serde_json::json!(["NaN", "inf", "-inf", 0.5]),
+            "{l}"
+        );
+        assert_eq!(m["temperature"], "NaN", "{l}");
+        // Parsed maps may sort their keys: the order is read off the line.
+        let at = |name: &str| l.find(&format!("\"{name}\":")).unwrap();
+        let members = [
+            "header",
+            "orientation",
+            "angular_velocity",
+            "linear_acceleration",
+            "temperature",
+        ];
+        assert!(
+            members.windows(2).all(|w| at(w[0]) < at(w[1])),
+            "declaration order: {l}"
+        );
+        assert!(
+            l.starts_with(r#"{"channel":"SPY_IMU","utime":"#),
+            "channel, utime, type, message: {l}"
+        );
     }
 }
 
@@ -135,5 +191,9 @@ fn reads_and_exports_an_lcm_logger_recording() {
     );
     let csv = std::fs::read_to_string(csv_dir.join("SPY_REC.csv")).unwrap();
     assert_eq!(csv.lines().count(), 11, "{csv}");
-    assert!(csv.lines().next().unwrap().contains("header.sequence"));
+    let columns = csv.lines().next().unwrap();
+    assert!(
+        columns.starts_with("event,log_utime,header.utime,header.sequence,header.frame,sent_utime,echoed_by,payload_size,payload[0],payload[1]"),
+        "declaration order: {columns}"
+    );
 }

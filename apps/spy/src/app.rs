@@ -17,7 +17,12 @@ use crate::{channel_filter, message_json};
 
 /// See what is on an LCM bus, or in an LCM log, without a display: channels with their rate,
 /// bandwidth and type (recognised by fingerprint), messages decoded as JSON lines, and logs
-/// exported to CSV or JSON, one file per channel.
+/// exported to CSV or JSON lines (one file per channel) or to one MCAP file.
+///
+/// Decoded messages list their members in the order the .lcm file declares them. JSON has no
+/// number for NaN or infinity: a float that is NaN, +infinity or -infinity is written as the
+/// string "NaN", "inf" or "-inf" (in JSON lines and MCAP) and as the cell NaN, inf or -inf (in
+/// CSV), so the three stay apart.
 #[derive(clap::Parser, Debug)]
 #[command(name = "stride-spy", version, about, long_about)]
 pub struct Cli {
@@ -47,7 +52,8 @@ enum Cmd {
         #[arg(long)]
         duration: Option<f64>,
     },
-    /// Decoded messages as JSON lines, from the live bus or from a log.
+    /// Decoded messages as JSON lines, from the live bus or from a log (NaN and infinities as
+    /// the strings "NaN", "inf", "-inf").
     Echo {
         /// Read this LCM log instead of the live bus.
         #[arg(long)]
@@ -62,14 +68,22 @@ enum Cmd {
         #[arg(long)]
         duration: Option<f64>,
     },
-    /// Writes one file per channel of a log: CSV (a column per field) or JSON lines.
+    /// Exports a log: one file per channel, CSV (a column per field, in declaration order) or
+    /// JSON lines, or one MCAP file for the whole log.
+    ///
+    /// MCAP: <OUT>/<log name>.mcap (rec.lcmlog gives rec.mcap), a channel per LCM channel,
+    /// messages in log order with the log's timestamps as log and publish time. A message of a
+    /// type this build knows is JSON (encoding "json") with its type's JSON Schema (encoding
+    /// "jsonschema", named after the LCM type); float members are "number" in the schema, and
+    /// NaN and infinities the strings "NaN", "inf", "-inf". A message it cannot decode keeps
+    /// its LCM bytes on a channel with encoding "lcm" and no schema; their count is printed.
     Export {
         /// The LCM log.
         log: PathBuf,
         /// Output directory.
         #[arg(long, short)]
         out: PathBuf,
-        /// csv or json.
+        /// Output format.
         #[arg(long, value_enum, default_value = "csv")]
         format: Format,
         /// Only channels matching this regular expression (anchored).
@@ -133,8 +147,18 @@ pub fn run(cli: Cli) -> anyhow::Result<std::process::ExitCode> {
             if files.is_empty() {
                 anyhow::bail!("{} holds no events on {channel}", log.display());
             }
-            for (ch, path, n) in files {
-                outln!("{ch}: {n} messages -> {}", path.display())?;
+            for c in files {
+                let undecoded = match (c.undecoded, format) {
+                    (0, _) => String::new(),
+                    (n, Format::Mcap) => format!(" ({n} not decoded, kept as LCM bytes)"),
+                    (n, _) => format!(" ({n} not decoded)"),
+                };
+                outln!(
+                    "{}: {} messages{undecoded} -> {}",
+                    c.channel,
+                    c.messages,
+                    c.path.display()
+                )?;
             }
         }
     }

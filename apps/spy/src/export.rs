@@ -1,5 +1,9 @@
-//! Export of a log, one file per channel: CSV (one column per scalar; short arrays spread over
-//! columns, long ones kept as a JSON cell) or JSON lines.
+//! Export of a log: one file per channel, CSV (one column per scalar, in declaration order;
+//! short arrays spread over columns, long ones kept as a JSON cell) or JSON lines; or one MCAP
+//! file for the whole log ([`crate::mcap_export`]).
+//!
+//! Floats that are NaN or infinite are the strings `"NaN"`, `"inf"`, `"-inf"` in JSON and the
+//! cells `NaN`, `inf`, `-inf` in CSV.
 
 use std::collections::{BTreeMap, HashMap};
 use std::io::Write;
@@ -14,10 +18,58 @@ pub const MAX_SPREAD_ARRAY: usize = 16;
 /// The output format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Format {
-    /// Comma-separated values with a header row.
+    /// Comma-separated values with a header row, a file per channel (CHANNEL.csv).
     Csv,
-    /// One JSON object per line.
+    /// One JSON object per line, a file per channel (CHANNEL.jsonl).
     Json,
+    /// One MCAP file for the whole log (LOG.mcap): JSON messages with their JSON Schemas.
+    Mcap,
+}
+
+/// What the export wrote for one channel.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ChannelExport {
+    /// The LCM channel.
+    pub channel: String,
+    /// The file its messages went to.
+    pub path: PathBuf,
+    /// Messages written.
+    pub messages: u64,
+    /// Of those, messages this build could not decode (unknown type, or broken).
+    pub undecoded: u64,
+}
+
+/// A channel's CSV columns, in order, and where each one is.
+#[derive(Debug, Default)]
+struct Columns {
+    order: Vec<String>,
+    index: HashMap<String, usize>,
+}
+
+impl Columns {
+    /// Adds a row's columns: one not seen before goes right after the row's previous column,
+    /// so columns keep the rows' order (declaration order) even when a later row has more
+    /// array elements.
+    fn merge<'a>(&mut self, row: impl Iterator<Item = &'a str>) {
+        let mut prev: Option<usize> = None;
+        for k in row {
+            let i = match self.index.get(k) {
+                Some(&i) => i,
+                None => {
+                    let i = prev.map_or(self.order.len(), |p| p + 1);
+                    for j in self.index.values_mut() {
+                        if *j >= i {
+                            *j += 1;
+                        }
+                    }
+                    self.order.insert(i, k.to_owned());
+                    self.index.insert(k.to_owned(), i);
+                    i
+                }
+            };
+            prev = Some(i);
+        }
+    }
 }
 
 /// Flattens a JSON value into `(column, cell)` pairs: `a.b`, `a[0]`, ...
@@ -58,94 +110,113 @@ fn file_name(channel: &str, ext: &str) -> String {
     format!("{safe}.{ext}")
 }
 
-/// Writes one file per channel of the log into `dir`; returns `(channel, file, rows)`.
+/// Writes the log's messages on channels matching `filter` into `dir`: a file per channel
+/// (CSV, JSON lines) or one MCAP file; returns what went where, by channel.
 pub fn export_log(
     log: &Path,
     dir: &Path,
     format: Format,
     filter: &regex::Regex,
-) -> anyhow::Result<Vec<(String, PathBuf, u64)>> {
+) -> anyhow::Result<Vec<ChannelExport>> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    if format == Format::Mcap {
+        return crate::mcap_export::export_mcap(
+            log,
+            &crate::mcap_export::mcap_path(log, dir),
+            filter,
+        );
+    }
     let events = || -> anyhow::Result<_> {
         Ok(lcm::LogReader::open(log)?.filter(|e| filter.is_match(&e.channel)))
     };
-    let rows_of = |e: &lcm::LogEvent| -> Vec<(String, String)> {
+    // A message's cells, and whether it decoded.
+    let rows_of = |e: &lcm::LogEvent| -> (Vec<(String, String)>, bool) {
         let v = crate::message_json(&e.channel, e.timestamp, &e.data);
         let mut cells = vec![
             ("event".to_owned(), e.number.to_string()),
             ("log_utime".to_owned(), e.timestamp.to_string()),
         ];
         match v.get("message") {
-            Some(m) => flatten("", m, &mut cells),
+            Some(m) => {
+                flatten("", m, &mut cells);
+                (cells, true)
+            }
             None => {
                 cells.push(("size".into(), e.data.len().to_string()));
                 if let Some(err) = v.get("error").and_then(Value::as_str) {
                     cells.push(("error".into(), err.to_owned()));
                 }
+                (cells, false)
             }
         }
-        cells
     };
-    let mut counts: BTreeMap<String, (PathBuf, u64)> = BTreeMap::new();
+    let mut counts: BTreeMap<String, ChannelExport> = BTreeMap::new();
+    let mut count = |channel: &str, path: &Path, decoded: bool| {
+        let c = counts
+            .entry(channel.to_owned())
+            .or_insert_with(|| ChannelExport {
+                channel: channel.to_owned(),
+                path: path.to_owned(),
+                messages: 0,
+                undecoded: 0,
+            });
+        c.messages += 1;
+        c.undecoded += u64::from(!decoded);
+    };
     match format {
         Format::Json => {
-            let mut files: HashMap<String, std::io::BufWriter<std::fs::File>> = HashMap::new();
+            let mut files: HashMap<String, (PathBuf, std::io::BufWriter<std::fs::File>)> =
+                HashMap::new();
             for e in events()? {
                 if !files.contains_key(&e.channel) {
                     let path = dir.join(file_name(&e.channel, "jsonl"));
                     let f = std::fs::File::create(&path)
                         .with_context(|| format!("creating {}", path.display()))?;
-                    files.insert(e.channel.clone(), std::io::BufWriter::new(f));
-                    counts.insert(e.channel.clone(), (path, 0));
+                    files.insert(e.channel.clone(), (path, std::io::BufWriter::new(f)));
                 }
                 let v = crate::message_json(&e.channel, e.timestamp, &e.data);
-                writeln!(files.get_mut(&e.channel).expect("opened"), "{v}")?;
-                counts.get_mut(&e.channel).expect("counted").1 += 1;
+                let (path, f) = files.get_mut(&e.channel).expect("opened");
+                writeln!(f, "{v}")?;
+                count(&e.channel, path, v.get("message").is_some());
             }
-            for (_, mut f) in files {
+            for (_, (_, mut f)) in files {
                 f.flush()?;
             }
         }
         Format::Csv => {
-            // First pass: the columns of each channel, in order of first appearance.
-            let mut columns: HashMap<String, (Vec<String>, HashMap<String, usize>)> =
+            // First pass: the columns of each channel, in the rows' order.
+            let mut columns: HashMap<String, Columns> = HashMap::new();
+            for e in events()? {
+                let c = columns.entry(e.channel.clone()).or_default();
+                c.merge(rows_of(&e).0.iter().map(|(k, _)| k.as_str()));
+            }
+            let mut writers: HashMap<String, (PathBuf, csv::Writer<std::fs::File>)> =
                 HashMap::new();
             for e in events()? {
-                let (order, index) = columns.entry(e.channel.clone()).or_default();
-                for (k, _) in rows_of(&e) {
-                    if !index.contains_key(&k) {
-                        index.insert(k.clone(), order.len());
-                        order.push(k);
-                    }
-                }
-            }
-            let mut writers: HashMap<String, csv::Writer<std::fs::File>> = HashMap::new();
-            for e in events()? {
-                let (order, index) = &columns[&e.channel];
+                let Columns { order, index } = &columns[&e.channel];
                 if !writers.contains_key(&e.channel) {
                     let path = dir.join(file_name(&e.channel, "csv"));
                     let mut w = csv::Writer::from_path(&path)
                         .with_context(|| format!("creating {}", path.display()))?;
                     w.write_record(order)?;
-                    writers.insert(e.channel.clone(), w);
-                    counts.insert(e.channel.clone(), (path, 0));
+                    writers.insert(e.channel.clone(), (path, w));
                 }
+                let (cells, decoded) = rows_of(&e);
                 let mut row = vec![String::new(); order.len()];
-                for (k, v) in rows_of(&e) {
+                for (k, v) in cells {
                     row[index[&k]] = v;
                 }
-                writers
-                    .get_mut(&e.channel)
-                    .expect("opened")
-                    .write_record(&row)?;
-                counts.get_mut(&e.channel).expect("counted").1 += 1;
+                let (path, w) = writers.get_mut(&e.channel).expect("opened");
+                w.write_record(&row)?;
+                count(&e.channel, path, decoded);
             }
-            for (_, mut w) in writers {
+            for (_, (_, mut w)) in writers {
                 w.flush()?;
             }
         }
+        Format::Mcap => unreachable!("exported above"),
     }
-    Ok(counts.into_iter().map(|(c, (p, n))| (c, p, n)).collect())
+    Ok(counts.into_values().collect())
 }
 
 #[cfg(test)]
@@ -160,7 +231,20 @@ mod tests {
         let mut out = Vec::new();
         flatten("", &v, &mut out);
         let keys: Vec<_> = out.iter().map(|(k, _)| k.as_str()).collect();
-        assert_eq!(keys, ["a.b", "long", "s", "short[0]", "short[1]"]);
+        assert_eq!(keys, ["a.b", "s", "short[0]", "short[1]", "long"]);
+    }
+
+    #[test]
+    fn new_columns_go_after_their_row_neighbour() {
+        let mut c = Columns::default();
+        c.merge(["event", "a[0]", "b[0]", "c"].into_iter());
+        c.merge(["event", "a[0]", "a[1]", "b[0]", "b[1]", "c"].into_iter());
+        c.merge(["event", "size"].into_iter());
+        let want = ["event", "size", "a[0]", "a[1]", "b[0]", "b[1]", "c"];
+        assert_eq!(c.order, want);
+        for (i, k) in want.iter().enumerate() {
+            assert_eq!(c.index[*k], i, "{k}");
+        }
     }
 
     #[test]

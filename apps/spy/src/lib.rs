@@ -1,8 +1,13 @@
-//! The logic of `stride-spy`: channel statistics, messages as JSON, log export, and its
-//! command line ([`Cli`], [`run`]).
+//! The logic of `stride-spy`: channel statistics, messages as JSON, log export (CSV, JSON
+//! lines, MCAP), and its command line ([`Cli`], [`run`]).
+//!
+//! Messages are decoded by `stride_lcmtypes`'s `to_json`: members in the `.lcm` declaration
+//! order, and floats that are NaN or infinite (JSON has no number for them) as the strings
+//! `"NaN"`, `"inf"` and `"-inf"`, so the three stay apart. CSV cells are `NaN`, `inf`, `-inf`.
 
 mod app;
 pub mod export;
+pub mod mcap_export;
 pub mod summary;
 
 pub use app::{run, Cli};
@@ -10,7 +15,8 @@ pub use app::{run, Cli};
 use serde_json::{json, Value};
 
 /// One message as a JSON object: channel, receive time, type and decoded value (or, for a type
-/// this build does not know, its fingerprint and size).
+/// this build does not know, its fingerprint and size). The value's members come in
+/// declaration order; NaN and infinities are the strings `"NaN"`, `"inf"`, `"-inf"`.
 pub fn message_json(channel: &str, utime: i64, data: &[u8]) -> Value {
     match stride_lcmtypes::decode_json(data) {
         Some((ty, Ok(value))) => json!({

@@ -10,12 +10,14 @@
 //!
 //! The generated code depends on the `lcm` crate (the `Message` trait and its codec), and,
 //! behind features of the crate that includes it, on `serde` + `serde-big-array` (`serde`),
-//! `serde_json` (`json`) and nothing more for `random`.
+//! `serde_json` (`json`: every type's `to_json` and `JSON_SCHEMA`, members in declaration order
+//! when serde_json's `preserve_order` is on) and nothing more for `random`.
 
 pub mod ast;
 pub mod hash;
 pub mod parse;
 pub mod rust;
+pub mod schema;
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};

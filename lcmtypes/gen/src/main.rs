@@ -17,7 +17,7 @@ struct Cli {
     /// Output file ("-" for standard output).
     #[arg(short, long, default_value = "-")]
     output: PathBuf,
-    /// Do not emit the TYPES table and decode_json.
+    /// Do not emit the TYPES table, decode_json and json_schema.
     #[arg(long)]
     no_registry: bool,
     /// Print each type's fingerprint instead of code.

@@ -30,10 +30,12 @@ impl Gate {
 /// What to emit besides the types.
 #[derive(Debug, Clone)]
 pub struct Options {
-    /// Emit `TYPES` (name and fingerprint of every type) and `decode_json` (any message to
-    /// JSON by its fingerprint; gated like `serde`, under the feature `json`).
+    /// Emit `TYPES` (name and fingerprint of every type), and with JSON `decode_json` (any
+    /// message to JSON by its fingerprint) and `json_schema` (a type's schema by name).
     pub registry: bool,
-    /// serde `Serialize`/`Deserialize` derives (needs `serde` and `serde-big-array`).
+    /// serde `Serialize`/`Deserialize` derives (needs `serde` and `serde-big-array`); the same
+    /// gate, under the feature `json`, emits every type's `to_json` and `JSON_SCHEMA` and the
+    /// function `json_float` (needs `serde_json`).
     pub serde: Gate,
     /// `lcm::Random` impls (random instances for tests).
     pub random: Gate,
@@ -380,6 +382,53 @@ impl Ctx<'_> {
         e
     }
 
+    /// An expression giving the JSON value of `expr`: a place (`self.f`) when `is_ref` is
+    /// false, a reference (`x0`) when true.
+    fn json_expr(
+        &self,
+        expr: &str,
+        is_ref: bool,
+        ty: &TypeRef,
+        dims: &[Dim],
+        depth: usize,
+    ) -> String {
+        let by_val = if is_ref {
+            format!("*{expr}")
+        } else {
+            expr.to_owned()
+        };
+        if dims.is_empty() {
+            return match ty {
+                TypeRef::Primitive(Primitive::String) => {
+                    format!("serde_json::Value::from({expr}.as_str())")
+                }
+                TypeRef::Primitive(Primitive::Boolean) => {
+                    format!("serde_json::Value::Bool({by_val})")
+                }
+                TypeRef::Primitive(Primitive::Float | Primitive::Double) => {
+                    format!("{}(f64::from({by_val}))", self.json_float_path())
+                }
+                TypeRef::Primitive(_) => format!("serde_json::Value::from({by_val})"),
+                TypeRef::Struct(_) => format!("{expr}.to_json()"),
+            };
+        }
+        let x = format!("x{depth}");
+        format!(
+            "serde_json::Value::Array({expr}.iter().map(|{x}| {}).collect())",
+            self.json_expr(&x, true, ty, &dims[1..], depth + 1)
+        )
+    }
+
+    /// Path from this package's module to the generated `json_float`.
+    fn json_float_path(&self) -> String {
+        let depth = if self.pkg.is_empty() {
+            0
+        } else {
+            self.pkg.split('.').count()
+        };
+        format!("{}json_float", "super::".repeat(depth))
+    }
+
     fn random_expr(&self, ty: &TypeRef, dims: &[Dim]) -> String {
         match dims.first() {
             None => match ty {
@@ -611,6 +660,49 @@ fn emit_struct(out: &mut String, set: &TypeSet, s: &Struct, opts: &Options) {
     }
     let _ = writeln!(out, "}}\n");
 
+    // JSON, and its schema.
+    if let Some(gate) = opts.serde.attr("json") {
+        let schema = crate::schema::json_schema(set, &full).to_text();
+        let _ = writeln!(out, "{gate}#[allow(non_snake_case)]\nimpl {name} {{");
+        let _ = writeln!(
+            out,
+            "    /// The JSON Schema (draft 2020-12) of [`Self::to_json`]'s value.\n    pub const JSON_SCHEMA: &'static str = {schema:?};\n"
+        );
+        let float = ctx.json_float_path();
+        let _ = writeln!(
+            out,
+            "    /// The message as a JSON object: its members in declaration order (with serde_json's\n    /// `preserve_order`), numbers as numbers, and floats that are NaN or infinite as the\n    /// strings `\"NaN\"`, `\"inf\"`, `\"-inf\"` ([`json_float`]({float})).\n    pub fn to_json(&self) -> serde_json::Value {{"
+        );
+        if s.members.is_empty() {
+            let _ = writeln!(
+                out,
+                "        serde_json::Value::Object(serde_json::Map::new())"
+            );
+        } else {
+            let _ = writeln!(
+                out,
+                "        let mut m = serde_json::Map::with_capacity({});",
+                s.members.len()
+            );
+            for m in &s.members {
+                let _ = writeln!(
+                    out,
+                    "        m.insert({:?}.to_owned(), {});",
+                    m.name,
+                    ctx.json_expr(
+                        &format!("self.{}", ident(&m.name)),
+                        false,
+                        &m.ty,
+                        &m.dims,
+                        0
+                    )
+                );
+            }
+            let _ = writeln!(out, "        serde_json::Value::Object(m)");
+        }
+        let _ = writeln!(out, "    }}\n}}\n");
+    }
+
     // Random instances, for tests.
     let Some(gate) = opts.random.attr("random") else {
         return;
@@ -680,17 +772,42 @@ pub fn generate(set: &TypeSet, opts: &Options) -> String {
         }
         out.push_str("];\n\n");
     }
+    if let Some(gate) = opts.serde.attr("json") {
+        out.push_str(&gate);
+        out.push_str(concat!(
+            "/// A float as JSON: a number when finite, else the string `\"NaN\"`, `\"inf\"` or `\"-inf\"`\n",
+            "/// (JSON has no number for them).\n",
+            "pub fn json_float(v: f64) -> serde_json::Value {\n",
+            "    if v.is_nan() {\n        serde_json::Value::from(\"NaN\")\n",
+            "    } else if v == f64::INFINITY {\n        serde_json::Value::from(\"inf\")\n",
+            "    } else if v == f64::NEG_INFINITY {\n        serde_json::Value::from(\"-inf\")\n",
+            "    } else {\n        serde_json::Value::from(v)\n    }\n}\n\n",
+        ));
+    }
     if let (true, Some(gate)) = (opts.registry, opts.serde.attr("json")) {
         out.push_str(&gate);
         out.push_str(
-            "/// Decodes any generated type, recognised by its fingerprint, to JSON: the type's name\n/// and the value, or `None` when no type has that fingerprint.\npub fn decode_json(data: &[u8]) -> Option<(&'static str, Result<serde_json::Value, String>)> {\n    fn conv<M: lcm::Message + serde::Serialize>(data: &[u8]) -> Result<serde_json::Value, String> {\n        let m = M::decode(data).map_err(|e| e.to_string())?;\n        serde_json::to_value(&m).map_err(|e| e.to_string())\n    }\n    let fp = u64::from_be_bytes(data.get(..8)?.try_into().ok()?);\n    match fp {\n",
+            "/// Decodes any generated type, recognised by its fingerprint, to JSON (its `to_json`): the\n/// type's name and the value, or `None` when no type has that fingerprint.\npub fn decode_json(data: &[u8]) -> Option<(&'static str, Result<serde_json::Value, String>)> {\n    let fp = u64::from_be_bytes(data.get(..8)?.try_into().ok()?);\n    match fp {\n",
         );
         for s in set.structs() {
             let full = s.full_name();
             let _ = writeln!(
                 out,
-                "        {:#018x} => Some(({full:?}, conv::<{}>(data))),",
+                "        {:#018x} => Some(({full:?}, <{} as lcm::Message>::decode(data).map(|m| m.to_json()).map_err(|e| e.to_string()))),",
                 set.fingerprint(&full),
+                type_path("", &full)
+            );
+        }
+        out.push_str("        _ => None,\n    }\n}\n\n");
+        out.push_str(&gate);
+        out.push_str(
+            "/// The JSON Schema of a generated type's JSON form (its `JSON_SCHEMA`), by full LCM name.\npub fn json_schema(type_name: &str) -> Option<&'static str> {\n    match type_name {\n",
+        );
+        for s in set.structs() {
+            let full = s.full_name();
+            let _ = writeln!(
+                out,
+                "        {full:?} => Some({}::JSON_SCHEMA),",
                 type_path("", &full)
             );
         }
