@@ -164,4 +164,23 @@ mod tests {
         );
         assert_eq!(mcap_path(Path::new("walk"), d), d.join("walk.mcap"));
     }
+
+    #[test]
+    fn a_time_mcap_cannot_hold_is_refused_and_leaves_no_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let log = dir.path().join("old.lcmlog");
+        let mut w = lcm::LogWriter::create(&log).unwrap();
+        w.write(5, "A", b"first").unwrap();
+        w.write(-1, "A", b"before 1970").unwrap();
+        drop(w);
+        let out = dir.path().join("old.mcap");
+        let all = crate::channel_filter(".*").unwrap();
+        let e = export_mcap(&log, &out, &all).unwrap_err().to_string();
+        assert!(e.contains("event 1 on A") && e.contains("-1 µs"), "{e}");
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "only the log"
+        );
+    }
 }
