@@ -204,6 +204,7 @@ pub fn plan_request(
         yaw_tolerance: (req.goal_yaw_tolerance > 0.0).then_some(req.goal_yaw_tolerance),
         max_expansions: (req.max_expansions > 0).then_some(req.max_expansions as u64),
         corridor,
+        inflation: None,
     };
     let budget = if req.max_time_us > 0 {
         Duration::from_micros(req.max_time_us as u64)

@@ -7,8 +7,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
-use stride_footstep::archie::steps::{self, StepParams};
-use stride_footstep::archie::{self, exact_length, headings, Params};
+use stride_footstep::archie::steps::StepParams;
+use stride_footstep::archie::{exact_length, Params};
 use stride_footstep::plan::{Plan, Status};
 use stride_footstep::planner;
 use stride_footstep::scene::Scene;
@@ -97,37 +97,22 @@ pub fn pct(v: &mut [f64], p: f64) -> f64 {
     v[((p / 100.0) * (v.len() - 1) as f64).round() as usize]
 }
 
-/// Plans `scene` in `mode` `repeats` times; the last plan, with its footsteps, and the times.
+/// Plans `scene` in `mode` `repeats` times through the planners' one entry
+/// ([`planner::plan`]): "faithful" is the thesis's tree, "same" the exact search on the
+/// thesis's growth, "improved" the default. The last plan, the times, and the settings used.
 fn plan_archie(scene: &Scene, mode: &str, repeats: usize) -> (Plan, Vec<f64>, Params) {
-    let obstacles = scene.circles();
-    let (start, goal) = (scene.start.p(), scene.goal.p());
-    let sp = StepParams::default();
-    let params = if mode == "improved" {
-        Params::improved()
-    } else {
-        Params::default()
-    };
+    let mut req = planner::scene_request(scene, mode == "faithful");
+    req.planner = planner::Which::Archie;
+    if mode == "same" {
+        req.inflation = Some(Params::default().inflation);
+    }
+    let params = planner::Which::archie_params(req.faithful, req.inflation);
+    let budget = planner::Which::Archie.default_budget();
     let mut times = Vec::with_capacity(repeats);
     let mut last = None;
     for _ in 0..repeats.max(1) {
         let t = Instant::now();
-        let mut plan = if mode == "faithful" {
-            archie::plan_tree(start, goal, &obstacles, &params).0
-        } else {
-            archie::plan_exact(start, goal, &obstacles, &params)
-        };
-        if plan.status == Status::Ok {
-            plan.steps = if mode == "faithful" {
-                steps::faithful(
-                    &plan.path,
-                    &headings(&plan.path, scene.start.yaw),
-                    &sp,
-                    true,
-                )
-            } else {
-                steps::improved(&plan.path, scene.start.yaw, &sp)
-            };
-        }
+        let plan = planner::plan(&req, scene, budget);
         times.push(t.elapsed().as_secs_f64() * 1e6);
         last = Some(plan);
     }

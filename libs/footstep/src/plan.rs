@@ -159,6 +159,74 @@ impl Plan {
     }
 }
 
+/// How one pass of an anytime search ended.
+#[derive(Debug)]
+pub enum PassEnd<R> {
+    /// A plan cheaper than the incumbent, of cost `cost`; `last` ends the search (a horizon
+    /// reached: the first plan stands).
+    Found {
+        /// The plan.
+        plan: R,
+        /// Its cost.
+        cost: f64,
+        /// No pass after this one.
+        last: bool,
+    },
+    /// Nothing cheaper than the incumbent within this pass's weight.
+    Exhausted,
+    /// Stopped by the expansion cap, the budget or a cancel, with why.
+    Stopped(&'static str),
+}
+
+/// The best plan of an anytime search, its cost, and the weight within which it is proven
+/// (infinite when no bounded pass proved it).
+#[derive(Debug)]
+pub struct Incumbent<R> {
+    /// The plan.
+    pub plan: R,
+    /// Its cost.
+    pub cost: f64,
+    /// Its suboptimality bound.
+    pub bound: f64,
+}
+
+/// The one anytime loop of the footstep searches: runs `pass` for each `(weight, lattice
+/// cells, bounded)` of `passes` in turn, pruned by the incumbent's cost, and keeps the
+/// cheapest plan. A bounded pass that finds nothing cheaper proves the incumbent within its
+/// weight, and one that finds nothing at all ends the search (no plan exists); an unbounded
+/// (scouting) pass proves nothing. Notes the first plan's time (from `started`) and
+/// expansions in `stats`. Returns the incumbent and why the search stopped early, if it did.
+pub fn anytime<R>(
+    passes: &[(f64, (f64, f64), bool)],
+    stats: &mut Stats,
+    started: std::time::Instant,
+    mut pass: impl FnMut(f64, (f64, f64), bool, f64, &mut Stats) -> PassEnd<R>,
+) -> (Option<Incumbent<R>>, Option<&'static str>) {
+    let mut best: Option<Incumbent<R>> = None;
+    for &(w, cells, bounded) in passes {
+        let cap = best.as_ref().map_or(f64::INFINITY, |b| b.cost);
+        match pass(w, cells, bounded, cap, stats) {
+            PassEnd::Found { plan, cost, last } => {
+                stats.first_plan.get_or_insert(started.elapsed());
+                stats.first_plan_expansions.get_or_insert(stats.expansions);
+                let bound = if bounded { w } else { f64::INFINITY };
+                best = Some(Incumbent { plan, cost, bound });
+                if last {
+                    break;
+                }
+            }
+            PassEnd::Exhausted => match best.as_mut() {
+                Some(b) if bounded => b.bound = w,
+                Some(_) => {}
+                None if bounded => break,
+                None => {}
+            },
+            PassEnd::Stopped(why) => return (best, Some(why)),
+        }
+    }
+    (best, None)
+}
+
 /// The passes of a lattice planner, each (weight, lattice cell: position m and yaw degrees,
 /// whether its plan is bounded by the weight on the planner's lattice): with duplicate
 /// detection (`lattice`), the scouting pass if any (unbounded) and then `weights` on `cells`;

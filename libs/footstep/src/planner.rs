@@ -49,6 +49,9 @@ pub struct Request {
     pub max_expansions: Option<u64>,
     /// LOLA's coupling 2: the corridor around the pre-planner's way (m), if wanted.
     pub corridor: Option<f64>,
+    /// Archie's planner: the growth of the obstacles (m), if not its mode's own (the improved
+    /// search on the thesis's growth compares the searches alone).
+    pub inflation: Option<f64>,
 }
 
 /// The scene with the request's start and goal (so a map made from the scene's extent holds
@@ -69,6 +72,20 @@ impl Which {
             Which::Lola => Duration::from_millis(400),
             _ => Duration::from_millis(200),
         }
+    }
+
+    /// Archie's planner's settings in a mode (the thesis's growth in faithful mode, the
+    /// footprint-safe one otherwise), with `inflation` instead of the mode's own if given.
+    pub fn archie_params(faithful: bool, inflation: Option<f64>) -> Params {
+        let mut p = if faithful {
+            Params::default()
+        } else {
+            Params::improved()
+        };
+        if let Some(i) = inflation {
+            p.inflation = i;
+        }
+        p
     }
 
     /// The growth around a plan's path within which a new obstacle makes it replan: the
@@ -204,15 +221,16 @@ fn search(req: &Request, world: &Scene, budget: Duration, cancel: &Cancel) -> Pl
         Which::Archie => {
             let circles = world.circles();
             let sp = StepParams::default();
+            let params = Which::archie_params(req.faithful, req.inflation);
             if req.faithful {
-                let mut p = archie::plan_tree(start, goal, &circles, &Params::default()).0;
+                let mut p = archie::plan_tree(start, goal, &circles, &params).0;
                 if p.status == Status::Ok {
                     p.steps =
                         steps::faithful(&p.path, &headings(&p.path, req.start.yaw), &sp, true);
                 }
                 p
             } else {
-                let mut p = archie::plan_exact(start, goal, &circles, &Params::improved());
+                let mut p = archie::plan_exact(start, goal, &circles, &params);
                 if p.status == Status::Ok {
                     p.steps = steps::improved(&p.path, req.start.yaw, &sp);
                 }
@@ -301,5 +319,6 @@ pub fn scene_request(scene: &Scene, faithful: bool) -> Request {
         yaw_tolerance: None,
         max_expansions: None,
         corridor: None,
+        inflation: None,
     }
 }

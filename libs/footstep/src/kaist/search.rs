@@ -33,7 +33,7 @@ use crate::archie::steps::FOOT;
 use crate::geom::{v2, wrap, V2};
 use crate::grid::{Grid, GridError, GRID_DETOUR};
 use crate::kaist::{self, Action, CostParams, Subset};
-use crate::plan::{anytime_passes, Cancel, Entry, Foot, Plan, Stats, Status};
+use crate::plan::{anytime, anytime_passes, Cancel, Entry, Foot, PassEnd, Plan, Stats, Status};
 use crate::scene::Scene;
 
 /// Which planner.
@@ -853,34 +853,20 @@ pub fn plan_from(
     // others') apart.
     let mut best_partial = (f64::INFINITY, vec![stance]);
     let mut best_scout = (f64::INFINITY, vec![stance]);
-    let mut incumbent: Option<(f64, Vec<Foot>, Vec<V2>, f64)> = None;
-    let mut why = "no foothold sequence reaches the goal";
-    for &(w, cells, bounded) in &passes {
-        let cap = incumbent.as_ref().map_or(f64::INFINITY, |b| b.0);
+    let (incumbent, stopped) = anytime(&passes, &mut stats, t1, |w, cells, bounded, cap, stats| {
         // The scouting pass also walks straight in strides, and its heuristic charges the
         // turn towards the 2-D way.
         let scouting = lattice && !bounded;
         pr.scouting.set(scouting);
         let strides = if scouting { s.strides } else { 1 };
-        let (end, nodes) = pass(
-            &pr,
-            root,
-            w,
-            cells,
-            strides,
-            cap,
-            &mut stats,
-            if scouting {
-                &mut best_scout
-            } else {
-                &mut best_partial
-            },
-        );
-        let w = if bounded { w } else { f64::INFINITY };
+        let best = if scouting {
+            &mut best_scout
+        } else {
+            &mut best_partial
+        };
+        let (end, nodes) = pass(&pr, root, w, cells, strides, cap, stats, best);
         match end {
             Pass::Found(e) => {
-                stats.first_plan.get_or_insert(t1.elapsed());
-                stats.first_plan_expansions.get_or_insert(stats.expansions);
                 let feet = trace(&nodes, e);
                 let mut path = Vec::new();
                 let mut at = Some(e);
@@ -889,22 +875,17 @@ pub fn plan_from(
                     at = nodes[i].parent;
                 }
                 path.reverse();
-                incumbent = Some((nodes[e].g, feet, path, w));
+                PassEnd::Found {
+                    plan: (feet, path),
+                    cost: nodes[e].g,
+                    last: false,
+                }
             }
-            // Nothing cheaper than the incumbent within this weight: it stands, bound w.
-            Pass::Exhausted => match incumbent.as_mut() {
-                Some(b) if bounded => b.3 = w,
-                Some(_) => {}
-                None if bounded => break,
-                // A scouting pass that runs dry proves nothing: the fine passes go on.
-                None => {}
-            },
-            Pass::Stopped(reason) => {
-                why = reason;
-                break;
-            }
+            Pass::Exhausted => PassEnd::Exhausted,
+            Pass::Stopped(why) => PassEnd::Stopped(why),
         }
-    }
+    });
+    let why = stopped.unwrap_or("no foothold sequence reaches the goal");
     stats.search = t1.elapsed();
     // Of the two partial plans, the one whose end the fine passes' heuristic puts nearer.
     pr.scouting.set(false);
@@ -927,7 +908,7 @@ pub fn plan_from(
         Heuristic::Dijkstra2d => !climbs,
         _ => false,
     };
-    match incumbent {
+    match incumbent.map(|i| (i.cost, i.plan.0, i.plan.1, i.bound)) {
         Some((cost, feet, path, w)) => Plan {
             status: Status::Ok,
             detail: String::new(),

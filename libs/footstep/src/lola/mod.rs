@@ -39,7 +39,7 @@ use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 
 use crate::geom::{convex_overlap, foot_cspace, rectangle, v2, wrap, V2};
 use crate::grid::{Grid, GRID_DETOUR};
-use crate::plan::{anytime_passes, Cancel, Entry, Foot, Plan, Stats, Status};
+use crate::plan::{anytime, anytime_passes, Cancel, Entry, Foot, PassEnd, Plan, Stats, Status};
 use crate::scene::{Obstacle, Scene};
 use crate::ssv::{overlaps, Solid, P3};
 use preplan::{preplan, Reduced, Way};
@@ -881,47 +881,36 @@ pub fn plan_from(
         passes.truncate(if lattice && s.scout.is_some() { 2 } else { 1 });
     }
     let mut best = (pr.h(&stance), vec![root], 0usize);
-    let mut found: Option<(Vec<Node>, usize, Status, f64)> = None;
-    let mut why = "no foothold sequence reaches the goal";
-    for &(w, cells, bounded) in &passes {
-        let cap = found.as_ref().map_or(f64::INFINITY, |f| f.0[f.1].g);
-        let out = pass(
+    let horizon = s.horizon.is_some();
+    let (found, stopped) = anytime(
+        &passes,
+        &mut stats,
+        t1,
+        |w, cells, _, cap, stats| match pass(
             &pr,
             root,
             (w, cells),
             lattice,
             cap,
             deadline,
-            &mut stats,
+            stats,
             &mut best,
-        );
-        let w = if bounded { w } else { f64::INFINITY };
-        match out {
-            Pass::Found(nodes, i, status) => {
-                stats.first_plan.get_or_insert(t1.elapsed());
-                stats.first_plan_expansions.get_or_insert(stats.expansions);
-                if status != Status::Ok {
-                    why = "the horizon";
-                }
-                found = Some((nodes, i, status, w));
-                if s.horizon.is_some() {
-                    break;
-                }
-            }
-            // Nothing cheaper below the incumbent within this weight: it stands, bound w. A
-            // scouting pass that runs dry proves nothing: the fine passes go on.
-            Pass::Exhausted => match found.as_mut() {
-                Some(f) if bounded => f.3 = w,
-                Some(_) => {}
-                None if bounded => break,
-                None => {}
+        ) {
+            Pass::Found(nodes, i, status) => PassEnd::Found {
+                cost: nodes[i].g,
+                plan: (nodes, i, status),
+                last: horizon,
             },
-            Pass::Stopped(reason) => {
-                why = reason;
-                break;
-            }
-        }
-    }
+            Pass::Exhausted => PassEnd::Exhausted,
+            Pass::Stopped(why) => PassEnd::Stopped(why),
+        },
+    );
+    let found = found.map(|f| (f.plan.0, f.plan.1, f.plan.2, f.bound));
+    let why = match (stopped, &found) {
+        (Some(why), _) => why,
+        (None, Some((_, _, status, _))) if *status != Status::Ok => "the horizon",
+        _ => "no foothold sequence reaches the goal",
+    };
     stats.search = t1.elapsed();
     let (nodes, last, status, bound) = match found {
         Some((nodes, i, status, w)) => (
