@@ -18,6 +18,7 @@ pub const fn v2(x: f64, y: f64) -> V2 {
 
 impl Add for V2 {
     type Output = V2;
+    #[inline]
     fn add(self, o: V2) -> V2 {
         v2(self.x + o.x, self.y + o.y)
     }
@@ -25,6 +26,7 @@ impl Add for V2 {
 
 impl Sub for V2 {
     type Output = V2;
+    #[inline]
     fn sub(self, o: V2) -> V2 {
         v2(self.x - o.x, self.y - o.y)
     }
@@ -32,6 +34,7 @@ impl Sub for V2 {
 
 impl Mul<f64> for V2 {
     type Output = V2;
+    #[inline]
     fn mul(self, k: f64) -> V2 {
         v2(self.x * k, self.y * k)
     }
@@ -39,42 +42,50 @@ impl Mul<f64> for V2 {
 
 impl V2 {
     /// Dot product.
+    #[inline]
     pub fn dot(self, o: V2) -> f64 {
         self.x * o.x + self.y * o.y
     }
 
     /// The z of the cross product (positive: `o` is to the left of `self`).
+    #[inline]
     pub fn cross(self, o: V2) -> f64 {
         self.x * o.y - self.y * o.x
     }
 
     /// Length.
+    #[inline]
     pub fn norm(self) -> f64 {
         // Not `hypot`: twice as fast, and these lengths are far from overflowing.
         (self.x * self.x + self.y * self.y).sqrt()
     }
 
     /// Distance to `o`.
+    #[inline]
     pub fn dist(self, o: V2) -> f64 {
         (self - o).norm()
     }
 
     /// Angle from the x axis, rad.
+    #[inline]
     pub fn angle(self) -> f64 {
         self.y.atan2(self.x)
     }
 
     /// The unit vector at angle `a`.
+    #[inline]
     pub fn polar(a: f64) -> V2 {
         v2(a.cos(), a.sin())
     }
 
     /// The least of each coordinate.
+    #[inline]
     pub fn min(self, o: V2) -> V2 {
         v2(self.x.min(o.x), self.y.min(o.y))
     }
 
     /// The greatest of each coordinate.
+    #[inline]
     pub fn max(self, o: V2) -> V2 {
         v2(self.x.max(o.x), self.y.max(o.y))
     }
@@ -90,6 +101,7 @@ pub struct Circle {
 }
 
 /// Distance from `p` to the segment `a`–`b`.
+#[inline]
 pub fn point_segment_distance(p: V2, a: V2, b: V2) -> f64 {
     let ab = b - a;
     let l2 = ab.dot(ab);
@@ -107,17 +119,20 @@ pub const EPS: f64 = 1e-6;
 
 impl Circle {
     /// True when `p` is strictly inside.
+    #[inline]
     pub fn contains(&self, p: V2) -> bool {
         p.dist(self.c) < self.r - EPS
     }
 
     /// True when the segment `a`–`b` enters the circle's interior.
+    #[inline]
     pub fn blocks(&self, a: V2, b: V2) -> bool {
         point_segment_distance(self.c, a, b) < self.r - EPS
     }
 
     /// The two tangent points seen from `p` (left one first, as seen from `p` looking at the
     /// centre), or `None` when `p` is not outside.
+    #[inline]
     pub fn tangent_points(&self, p: V2) -> Option<[V2; 2]> {
         let d = p.dist(self.c);
         if d <= self.r {
@@ -135,6 +150,7 @@ impl Circle {
 
 /// The intersection of the line through `a1`, `a2` with the line through `b1`, `b2`; `None`
 /// when they are parallel.
+#[inline]
 pub fn line_intersection(a1: V2, a2: V2, b1: V2, b2: V2) -> Option<V2> {
     let (da, db) = (a2 - a1, b2 - b1);
     let den = da.cross(db);
@@ -146,6 +162,7 @@ pub fn line_intersection(a1: V2, a2: V2, b1: V2, b2: V2) -> Option<V2> {
 }
 
 /// Wraps an angle to (-π, π].
+#[inline]
 pub fn wrap(a: f64) -> f64 {
     let mut a = a % std::f64::consts::TAU;
     if a <= -std::f64::consts::PI {
@@ -187,6 +204,7 @@ fn project(p: &[V2], n: V2) -> (f64, f64) {
 }
 
 /// Distance from `c` to the convex polygon `poly` (0 inside).
+#[inline]
 pub fn point_polygon_distance(c: V2, poly: &[V2]) -> f64 {
     let inside = (0..poly.len()).all(|i| {
         let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
@@ -201,6 +219,7 @@ pub fn point_polygon_distance(c: V2, poly: &[V2]) -> f64 {
 }
 
 /// True when segments `a`–`b` and `c`–`d` cross.
+#[inline]
 pub fn segments_cross(a: V2, b: V2, c: V2, d: V2) -> bool {
     let d1 = (b - a).cross(c - a);
     let d2 = (b - a).cross(d - a);
@@ -210,6 +229,7 @@ pub fn segments_cross(a: V2, b: V2, c: V2, d: V2) -> bool {
 }
 
 /// The rectangle of `size` (length along `yaw`, width) centred on `c`, counter-clockwise.
+#[inline]
 pub fn rectangle(c: V2, yaw: f64, size: (f64, f64)) -> [V2; 4] {
     let (d, s) = (V2::polar(yaw), v2(-yaw.sin(), yaw.cos()));
     let (l, w) = (size.0 / 2.0, size.1 / 2.0);

@@ -294,11 +294,13 @@ impl Grid {
     }
 
     /// The centre of cell (i, j).
+    #[inline]
     pub fn centre(&self, i: usize, j: usize) -> V2 {
         self.origin + v2((i as f64 + 0.5) * self.res, (j as f64 + 0.5) * self.res)
     }
 
     /// The cell holding `p`, if inside the map.
+    #[inline]
     pub fn cell(&self, p: V2) -> Option<(usize, usize)> {
         let q = (p - self.origin) * (1.0 / self.res);
         if !(q.x >= 0.0 && q.y >= 0.0 && q.x.is_finite() && q.y.is_finite()) {
@@ -309,11 +311,13 @@ impl Grid {
     }
 
     /// True when `p` is on the map.
+    #[inline]
     pub fn contains(&self, p: V2) -> bool {
         self.cell(p).is_some()
     }
 
     /// The height at `p` (`NaN` off the map or unknown).
+    #[inline]
     pub fn height(&self, p: V2) -> f64 {
         self.cell(p)
             .map_or(f64::NAN, |(i, j)| self.h[j * self.nx + i])
@@ -322,6 +326,7 @@ impl Grid {
     /// The highest cell whose centre lies in the rectangle of `size` (length along `yaw`,
     /// width) centred on `c`, grown by `margin` on every side: `NaN` if one is unknown,
     /// `None` when part of the rectangle is off the map, `-inf` when no centre lies in it.
+    #[inline]
     pub fn max_in_rect(&self, c: V2, yaw: f64, size: (f64, f64), margin: f64) -> Option<f64> {
         let (d, s) = (V2::polar(yaw), v2(-yaw.sin(), yaw.cos()));
         let (hl, hw) = (size.0 / 2.0 + margin, size.1 / 2.0 + margin);
@@ -337,6 +342,7 @@ impl Grid {
 
     /// The highest cell whose centre lies in the ellipse with the segment a-b as its axis,
     /// grown by `along` at each end, `across` wide on each side (see [`Grid::max_in_rect`]).
+    #[inline]
     pub fn max_in_ellipse(&self, a: V2, b: V2, along: f64, across: f64) -> Option<f64> {
         let c = (a + b) * 0.5;
         let len = a.dist(b);
@@ -394,6 +400,7 @@ impl Grid {
 
     /// Down a distance field from `p`: the cell [`Grid::way`] reaches once the distance has
     /// dropped by `ahead` (or the goal's), if `p` is on the map and reaches the goal.
+    #[inline]
     pub fn descent(&self, field: &[f64], p: V2, ahead: f64) -> Option<V2> {
         let way = self.way(field, p, ahead);
         let k0 = *way.first()?;

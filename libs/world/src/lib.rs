@@ -18,12 +18,14 @@ pub struct Least(pub f64, pub usize);
 impl Eq for Least {}
 
 impl Ord for Least {
+    #[inline]
     fn cmp(&self, o: &Self) -> Ordering {
         o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
     }
 }
 
 impl PartialOrd for Least {
+    #[inline]
     fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
         Some(self.cmp(o))
     }

@@ -34,6 +34,7 @@ pub struct Pose {
 
 impl Pose {
     /// The position.
+    #[inline]
     pub fn p(&self) -> V2 {
         v2(self.x, self.y)
     }

@@ -82,6 +82,7 @@ pub enum Footprint {
 
 impl Footprint {
     /// The signed distance from `p`, m (negative inside).
+    #[inline]
     pub fn distance(&self, p: crate::geom::V2) -> f64 {
         match *self {
             Footprint::Core(core, radius) => {
@@ -147,6 +148,7 @@ impl Solid {
     }
 
     /// The same solid moved by `t`.
+    #[inline]
     pub fn translated(&self, t: V3) -> Solid {
         match *self {
             Solid::Ssv { core, radius } => Solid::Ssv {
@@ -175,6 +177,7 @@ impl Solid {
     }
 
     /// Its bounding box.
+    #[inline]
     pub fn aabb(&self) -> Aabb {
         match *self {
             Solid::Ssv { core, radius } => {
@@ -201,11 +204,13 @@ impl Solid {
     }
 
     /// The height of its top, m.
+    #[inline]
     pub fn top(&self) -> f64 {
         self.aabb().maxs.z
     }
 
     /// The signed distance from `p` to its footprint (its shadow on the ground), m.
+    #[inline]
     pub fn footprint_distance(&self, p: crate::geom::V2) -> f64 {
         self.footprint().distance(p)
     }
@@ -292,6 +297,7 @@ fn both_ssv<'a>(a: &'a Solid, b: &'a Solid) -> Option<(&'a Core, f64, &'a Core, 
 }
 
 /// The signed distance between `a` and `b`, their closest points and its gradient.
+#[inline]
 pub fn proximity(a: &Solid, b: &Solid) -> Proximity {
     if let Some((ca, ra, cb, rb)) = both_ssv(a, b) {
         let (pa, pb) = closest_cores(ca, cb);
@@ -329,6 +335,7 @@ pub fn proximity(a: &Solid, b: &Solid) -> Proximity {
 }
 
 /// True when `a` and `b` overlap (touching counts); cheaper than [`proximity`].
+#[inline]
 pub fn overlaps(a: &Solid, b: &Solid) -> bool {
     if let Some((ca, ra, cb, rb)) = both_ssv(a, b) {
         let (pa, pb) = closest_cores(ca, cb);
@@ -341,6 +348,7 @@ pub fn overlaps(a: &Solid, b: &Solid) -> bool {
 
 /// The least signed distance from `a` to any of `others` whose bounding box comes within
 /// `reach` of `a`'s (the rest are at least that far: `None` when all are).
+#[inline]
 pub fn nearest(a: &Solid, others: &[(Solid, Aabb)], reach: f64) -> Option<(usize, Proximity)> {
     let ba = a.aabb().loosened(reach);
     others
@@ -470,6 +478,7 @@ fn segment_triangle(p: P3, q: P3, t: [P3; 3]) -> (P3, P3) {
 }
 
 /// The closest points of two cores.
+#[inline]
 pub fn closest_cores(a: &Core, b: &Core) -> (P3, P3) {
     use Core::*;
     match (*a, *b) {
