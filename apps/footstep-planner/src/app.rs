@@ -282,8 +282,12 @@ impl AppConfig for PlannerConfig {
 type Done = (Job, Result<(FootstepPlanT, Vec<V2>, f64), String>, Duration);
 
 /// The search thread: one job at a time; a search that panics is answered, not lost.
+/// What the search thread runs on a job: the planners, or another search in a test.
+type Search = fn(&FootstepPlanRequestT, &World, &Limits, &Cancel) -> (FootstepPlanT, Vec<V2>, f64);
+
 fn spawn_worker(
     limits: Limits,
+    search: Search,
 ) -> std::io::Result<(
     mpsc::Sender<Job>,
     mpsc::Receiver<Done>,
@@ -297,7 +301,7 @@ fn spawn_worker(
             while let Ok(job) = job_rx.recv() {
                 let t = Instant::now();
                 let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    plan_request(&job.req, &job.world, &limits, &job.cancel)
+                    search(&job.req, &job.world, &limits, &job.cancel)
                 }))
                 .map_err(|p| {
                     p.downcast_ref::<&str>()
@@ -359,7 +363,7 @@ impl PlannerApp {
         // A burst of requests waits for the loop rather than being dropped: each is answered.
         req_sub.set_queue_capacity(10_000)?;
         let (obs_sub, obstacles) = node.queue::<ObstacleListT>(&cli.obstacle_channel)?;
-        let (jobs, results, worker) = spawn_worker(cfg.limits())?;
+        let (jobs, results, worker) = spawn_worker(cfg.limits(), plan_request)?;
         Ok(PlannerApp {
             scheduler: Scheduler::new(cfg.max_waiting),
             cli,
@@ -418,7 +422,7 @@ impl PlannerApp {
         if let Err(mpsc::SendError(job)) = self.jobs.send(job) {
             tracing::error!("the search thread has gone; starting it again");
             self.counts.restarts += 1;
-            let (jobs, results, worker) = spawn_worker(self.cfg.limits())?;
+            let (jobs, results, worker) = spawn_worker(self.cfg.limits(), plan_request)?;
             (self.jobs, self.results, self.worker) = (jobs, results, worker);
             let _ = self.jobs.send(job);
         }
@@ -543,5 +547,53 @@ pub fn run(node: &Node, cli: Cli, cfg: PlannerConfig) -> anyhow::Result<ExitCode
         node.run(Asker::start(node, cli)?)
     } else {
         node.run(PlannerApp::start(node, cli, cfg)?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn job(id: i64) -> Job {
+        Job {
+            req: request_at(id, 0, v2(0.0, 0.0), 0.0, v2(1.0, 0.0)),
+            world: World::default(),
+            reason: Reason::Request,
+            cancel: Cancel::new(),
+        }
+    }
+
+    fn panics_on_odd(
+        req: &FootstepPlanRequestT,
+        world: &World,
+        limits: &Limits,
+        cancel: &Cancel,
+    ) -> (FootstepPlanT, Vec<V2>, f64) {
+        if req.request_id % 2 == 1 {
+            panic!("a planner bug on request {}", req.request_id);
+        }
+        plan_request(req, world, limits, cancel)
+    }
+
+    #[test]
+    fn a_search_that_panics_is_answered_and_the_thread_goes_on() {
+        let (jobs, results, worker) = spawn_worker(Limits::default(), panics_on_odd).unwrap();
+        for id in [1, 2, 3, 4] {
+            jobs.send(job(id)).unwrap();
+        }
+        let got: Vec<Done> = (0..4)
+            .map(|_| results.recv_timeout(Duration::from_secs(10)).unwrap())
+            .collect();
+        for (j, out, _) in &got {
+            match j.req.request_id % 2 {
+                1 => assert!(
+                    out.as_ref().is_err_and(|e| e.contains("a planner bug")),
+                    "{out:?}"
+                ),
+                _ => assert_eq!(out.as_ref().unwrap().0.status, FootstepPlanT::STATUS_OK),
+            }
+        }
+        drop(jobs);
+        worker.join().unwrap();
     }
 }
