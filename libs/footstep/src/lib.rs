@@ -8,7 +8,7 @@
 //! - [`kaist`]: the KAIST energy A* over footholds on an elevation grid (its cost model here,
 //!   the search in [`kaist::search`]);
 //! - [`lola`]: LOLA's footstep A* over steppable surfaces with a 3-D swing check, coupled to
-//!   its 2-D pre-planner ([`lola::preplan`]).
+//!   its 2-D pre-planner ([`lola::preplan`](mod@lola::preplan)).
 //!
 //! [`svg`] draws a plan. The world they plan in is `stride-world`'s, re-exported here.
 

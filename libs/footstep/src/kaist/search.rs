@@ -55,7 +55,7 @@ pub enum Heuristic {
     /// Eq. 12 plus the turn, F·Δθ²/N (Eq. 14): the thesis's.
     EuclidAngle,
     /// Eq. 14, and the thesis's local-minimum penalty (Eq. 15) where a tall obstacle lies
-    /// ahead: see [`Problem::penalised`]. Inadmissible by design.
+    /// ahead (the search's `penalised`). Inadmissible by design.
     EuclidAnglePenalty,
     /// The admissible energy bound ([`kaist::h_improved`]).
     EnergyBound,

@@ -17,7 +17,7 @@
 //!   of the step from the desired one (W = diag(1, 1, 0.2 m/rad)); heuristic: the weighted
 //!   distance of the mid-stance point and heading from the goal. Consistent for k ≥ 1.
 //! - faithful ([`Mode::Thesis`]): the thesis's search tree (no duplicate detection), its
-//!   heuristic, and its 2-D pre-planner ([`crate::lola::preplan`]: seeds shifted to free space, one
+//!   heuristic, and its 2-D pre-planner ([`preplan`](mod@crate::lola::preplan): seeds shifted to free space, one
 //!   way per homotopy class, the cheapest by Eq. 4.17) coupled as heuristic and heading
 //!   (couplings 1 and 3); at the budget it falls back to stepping in place.
 //! - improved ([`Mode::Improved`]): a scouting pass on a coarse lattice (0.2 m, 15°, weight
@@ -48,7 +48,7 @@ use preplan::{preplan, Reduced, Way};
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PrePlanner {
     /// The thesis's: seeds shifted to free space, one way per homotopy class, the cheapest by
-    /// Eq. 4.17 ([`crate::lola::preplan`]).
+    /// Eq. 4.17 ([`preplan`](mod@crate::lola::preplan)).
     Thesis,
     /// A distance field over the tall obstacles: the shortest way, as a heuristic that is a
     /// lower bound of its length from anywhere.
