@@ -20,10 +20,22 @@
 //! because viewers such as Foxglove take a member's `type` as one name, so those three strings
 //! fall outside it (the schema's `$comment` says so). The serde derives are a separate matter:
 //! serde_json writes NaN as `null` through them.
+//!
+//! For MCAP files (and Foxglove, whose JSON Schema reader takes no array of arrays), the
+//! module `nested` (feature `json`) turns every array of arrays into an array of
+//! `{"values": [..]}` objects, in the values (`wrap_nested_arrays`, `decode_nested_json`) and
+//! the schemas (`nested_json_schema`).
 
 #![allow(clippy::all)]
 
 include!(concat!(env!("OUT_DIR"), "/lcmtypes.rs"));
+
+#[cfg(feature = "json")]
+pub mod nested;
+#[cfg(feature = "json")]
+pub use nested::{
+    decode_nested_json, nested_json_schema, wrap_nested_array_schema, wrap_nested_arrays,
+};
 
 /// Looks up a type's full LCM name by the fingerprint in the first 8 bytes of a message.
 pub fn type_name_for_fingerprint(fingerprint: u64) -> Option<&'static str> {

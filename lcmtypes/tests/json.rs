@@ -1,10 +1,14 @@
 //! The JSON form of the generated types (`to_json`, `decode_json`) and its schema
-//! (`JSON_SCHEMA`). Needs the features `json` and `random`.
+//! (`JSON_SCHEMA`), and the MCAP form with arrays of arrays wrapped (`decode_nested_json`,
+//! `nested_json_schema`). Needs the features `json` and `random`.
 
 use lcm::{Message, Random, Rng};
 use serde_json::{json, Value};
 use stride_lcmtypes::stride::*;
-use stride_lcmtypes::{decode_json, json_float, json_schema, TYPES};
+use stride_lcmtypes::{
+    decode_json, decode_nested_json, json_float, json_schema, nested_json_schema,
+    wrap_nested_arrays, TYPES,
+};
 
 fn keys(v: &Value) -> Vec<&str> {
     v.as_object().unwrap().keys().map(String::as_str).collect()
@@ -163,16 +167,110 @@ fn check_type<M: Message + Random>(rng: &mut Rng, to_json: fn(&M) -> Value) -> &
     let schema: Value = serde_json::from_str(json_schema(M::TYPE_NAME).unwrap()).unwrap();
     assert_eq!(schema["title"], M::TYPE_NAME);
     assert!(schema["$comment"].as_str().unwrap().contains("\"NaN\""));
+    let nested: Value = serde_json::from_str(&nested_json_schema(M::TYPE_NAME).unwrap()).unwrap();
+    assert_eq!(nested["title"], M::TYPE_NAME);
     for _ in 0..20 {
         rng.set_budget(Rng::DEFAULT_BUDGET);
         let m = M::random(rng);
         let v = to_json(&m);
         check(&schema, &schema, &v, M::TYPE_NAME);
-        let (name, decoded) = decode_json(&m.encode().unwrap()).unwrap();
+        let data = m.encode().unwrap();
+        let (name, decoded) = decode_json(&data).unwrap();
         assert_eq!(name, M::TYPE_NAME);
         assert_eq!(decoded.unwrap(), v);
+        // The MCAP form: the same values, arrays of arrays wrapped, against its own schema.
+        let w = wrap_nested_arrays(v.clone());
+        check(&nested, &nested, &w, M::TYPE_NAME);
+        unwrapped_equals(&w, &v, M::TYPE_NAME);
+        let (name, decoded) = decode_nested_json(&data).unwrap();
+        assert_eq!(name, M::TYPE_NAME);
+        assert_eq!(decoded.unwrap(), w);
     }
     M::TYPE_NAME
+}
+
+/// `wrapped` is `plain` value by value, each inner array of an array of arrays in an object
+/// `{"values": <it>}` and nothing else changed.
+fn unwrapped_equals(wrapped: &Value, plain: &Value, path: &str) {
+    match (wrapped, plain) {
+        (Value::Object(w), Value::Object(p)) => {
+            assert_eq!(keys(wrapped), keys(plain), "{path}");
+            for (k, x) in p {
+                unwrapped_equals(&w[k], x, &format!("{path}.{k}"));
+            }
+        }
+        (Value::Array(w), Value::Array(p)) => {
+            assert_eq!(w.len(), p.len(), "{path}");
+            for (i, (x, y)) in w.iter().zip(p).enumerate() {
+                let at = format!("{path}[{i}]");
+                if y.is_array() {
+                    assert_eq!(keys(x), ["values"], "{at}");
+                    unwrapped_equals(&x["values"], y, &format!("{at}.values"));
+                } else {
+                    assert!(!x.is_array(), "{at}");
+                    unwrapped_equals(x, y, &at);
+                }
+            }
+        }
+        (w, p) => assert_eq!(w, p, "{path}"),
+    }
+}
+
+/// Fails on any array schema whose `items` is an array schema, anywhere in `schema`.
+fn no_array_of_arrays(schema: &Value, path: &str) {
+    match schema {
+        Value::Object(m) => {
+            if m.get("type") == Some(&json!("array")) {
+                let items = &m["items"];
+                assert_ne!(items["type"], "array", "{path}: an array of arrays");
+            }
+            for (k, v) in m {
+                no_array_of_arrays(v, &format!("{path}/{k}"));
+            }
+        }
+        Value::Array(a) => {
+            for (i, v) in a.iter().enumerate() {
+                no_array_of_arrays(v, &format!("{path}/{i}"));
+            }
+        }
+        _ => {}
+    }
+}
+
+#[test]
+fn mcap_schemas_have_no_array_of_arrays() {
+    let mut wrapped = Vec::new();
+    for (name, _) in TYPES {
+        let text = nested_json_schema(name).unwrap_or_else(|| panic!("no MCAP schema for {name}"));
+        let schema: Value = serde_json::from_str(&text).unwrap();
+        no_array_of_arrays(&schema, name);
+        let plain: Value = serde_json::from_str(json_schema(name).unwrap()).unwrap();
+        if schema != plain {
+            wrapped.push(*name);
+        }
+    }
+    wrapped.sort_unstable();
+    // Every type with a multi-dimensional array, directly or through a member.
+    assert_eq!(
+        wrapped,
+        [
+            "stride.joint_trajectory_t",
+            "stride.obstacle_list_t",
+            "stride.obstacle_t",
+            "stride.point_cloud_t"
+        ]
+    );
+    assert_eq!(nested_json_schema("stride.no_such_t"), None);
+    let cloud = PointCloudT {
+        num_points: 2,
+        points: vec![[1.0, 2.0, 3.0], [f32::INFINITY, 0.5, -1.0]],
+        ..Default::default()
+    };
+    let v = wrap_nested_arrays(cloud.to_json());
+    assert_eq!(
+        v["points"],
+        json!([{"values": [1.0, 2.0, 3.0]}, {"values": ["inf", 0.5, -1.0]}])
+    );
 }
 
 #[test]

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use lcm::{Lcm, LogReader, Message};
 use serde_json::{json, Value};
-use stride_lcmtypes::stride::{HeaderT, ImuT, JointStateT, PingT};
+use stride_lcmtypes::stride::{HeaderT, ImuT, JointStateT, JointTrajectoryT, PingT};
 use stride_tests::{bin, in_sandbox, udpm_url};
 
 fn header(i: i64) -> HeaderT {
@@ -38,6 +38,38 @@ fn imu(i: i64) -> ImuT {
         angular_velocity: [f64::INFINITY, 0.25, -0.75],
         linear_acceleration: [0.0, 0.0, 9.75],
         temperature: if i % 2 == 0 { f32::NAN } else { 21.5 },
+    }
+}
+
+/// A trajectory of 3 rows of 2 joints: its positions and velocities are arrays of arrays.
+fn trajectory(i: i64) -> JointTrajectoryT {
+    let row = |r: usize| [i as f64 + r as f64 * 0.5, -(r as f64)];
+    JointTrajectoryT {
+        header: header(i),
+        start_utime: 5_000 + i,
+        mode: JointTrajectoryT::MODE_PVT,
+        queue: JointTrajectoryT::QUEUE_APPEND,
+        num_joints: 2,
+        joint_names: vec!["hip".into(), "knee".into()],
+        num_rows: 3,
+        time_from_start: vec![0.0, 0.1, 0.2],
+        positions: (0..3).map(|r| row(r).to_vec()).collect(),
+        velocities: vec![
+            vec![f64::NAN, 0.25],
+            vec![f64::INFINITY, 0.0],
+            vec![-1.0, f64::NEG_INFINITY],
+        ],
+    }
+}
+
+/// An array of arrays as the MCAP export writes it: each row an object holding its values
+/// under "values", checked value by value against `want`.
+fn rows(v: &Value, want: &[Vec<f64>]) {
+    let got = v.as_array().unwrap_or_else(|| panic!("not an array: {v}"));
+    assert_eq!(got.len(), want.len(), "{v}");
+    for (g, w) in got.iter().zip(want) {
+        assert_eq!(keys(g), ["values"], "{g}");
+        floats(&g["values"], w);
     }
 }
 
@@ -94,6 +126,7 @@ fn mcap_export_of_an_lcm_logger_recording_keeps_every_message() {
     for i in 0..20 {
         lcm.publish("MCAP_JOINTS", &joints(i)).unwrap();
         lcm.publish("MCAP_IMU", &imu(i)).unwrap();
+        lcm.publish("MCAP_TRAJ", &trajectory(i)).unwrap();
         lcm.publish_raw("MCAP_RAW", format!("raw {i}").as_bytes())
             .unwrap();
         std::thread::sleep(Duration::from_millis(3));
@@ -127,7 +160,7 @@ fn mcap_export_of_an_lcm_logger_recording_keeps_every_message() {
         .map(Result::unwrap)
         .collect();
     assert_eq!(messages.len(), events.len(), "every event of the log");
-    let (mut joints_seen, mut imus_seen, mut raws_seen) = (0, 0, 0);
+    let (mut joints_seen, mut imus_seen, mut trajs_seen, mut raws_seen) = (0, 0, 0, 0);
     for (m, e) in messages.iter().zip(&events) {
         assert_eq!(m.channel.topic, e.channel);
         assert_eq!(m.log_time, e.timestamp as u64 * 1000, "event {}", e.number);
@@ -198,6 +231,32 @@ fn mcap_export_of_an_lcm_logger_recording_keeps_every_message() {
                 floats(&v["linear_acceleration"], &want.linear_acceleration);
                 floats(&json!([v["temperature"]]), &[want.temperature]);
             }
+            "MCAP_TRAJ" => {
+                assert_eq!(schema.name, "stride.joint_trajectory_t");
+                let want = JointTrajectoryT::decode(&e.data).unwrap();
+                assert_eq!(want.header, trajectory(trajs_seen).header);
+                trajs_seen += 1;
+                check_header(&v["header"], &want.header);
+                assert_eq!(v["start_utime"], want.start_utime);
+                assert_eq!(v["mode"], want.mode);
+                assert_eq!(v["queue"], want.queue);
+                assert_eq!(v["num_joints"], want.num_joints);
+                assert_eq!(v["joint_names"], json!(want.joint_names));
+                assert_eq!(v["num_rows"], want.num_rows);
+                floats(&v["time_from_start"], &want.time_from_start);
+                rows(&v["positions"], &want.positions);
+                rows(&v["velocities"], &want.velocities);
+                assert_eq!(v["positions"][2]["values"][0], json!(want.positions[2][0]));
+                assert_eq!(v["velocities"][1]["values"][0], "inf");
+                // The schema has objects, not arrays, for the rows.
+                for member in ["positions", "velocities"] {
+                    let items = &schema_json["properties"][member]["items"];
+                    assert_eq!(items["type"], "object", "{member}");
+                    assert_eq!(items["required"], json!(["values"]));
+                    assert_eq!(items["properties"]["values"]["type"], "array");
+                    assert_eq!(items["properties"]["values"]["items"]["type"], "number");
+                }
+            }
             "MCAP_PROBE" => {
                 assert_eq!(schema.name, "stride.ping_t");
                 let want = PingT::decode(&e.data).unwrap();
@@ -207,5 +266,8 @@ fn mcap_export_of_an_lcm_logger_recording_keeps_every_message() {
             other => panic!("unexpected channel {other}"),
         }
     }
-    assert_eq!((joints_seen, imus_seen, raws_seen), (20, 20, 20));
+    assert_eq!(
+        (joints_seen, imus_seen, trajs_seen, raws_seen),
+        (20, 20, 20, 20)
+    );
 }

@@ -75,8 +75,11 @@ enum Cmd {
     /// messages in log order with the log's timestamps as log and publish time. A message of a
     /// type this build knows is JSON (encoding "json") with its type's JSON Schema (encoding
     /// "jsonschema", named after the LCM type); float members are "number" in the schema, and
-    /// NaN and infinities the strings "NaN", "inf", "-inf". A message it cannot decode keeps
-    /// its LCM bytes on a channel with encoding "lcm" and no schema; their count is printed.
+    /// NaN and infinities the strings "NaN", "inf", "-inf". Foxglove's schema reader takes no
+    /// array of arrays, so in MCAP (only) each inner array of a 2-D member sits in an object
+    /// under "values" (3-D: nested again): positions: [{"values": [..]}, ..], read as
+    /// .positions[2].values[0]. A message it cannot decode keeps its LCM bytes on a channel
+    /// with encoding "lcm" and no schema; their count is printed.
     Export {
         /// The LCM log.
         log: PathBuf,

@@ -6,7 +6,12 @@
 //!   `stride_lcmtypes`'s `to_json` writes it: members in declaration order, NaN and infinities
 //!   as the strings `"NaN"`, `"inf"`, `"-inf"`. Its MCAP channel has the LCM channel as topic
 //!   and a schema named after the LCM type (`stride.joint_state_t`), encoding `jsonschema`,
-//!   holding that type's JSON Schema;
+//!   holding that type's JSON Schema. Foxglove's JSON Schema reader takes no array of arrays,
+//!   so in both the message and the schema every array of arrays (a member with two or more
+//!   dimensions) is an array of objects, each holding one inner array under the key `values`
+//!   (for three dimensions, nested again the same way): `positions: [[..], [..]]` is written
+//!   `positions: [{"values": [..]}, {"values": [..]}]`, read as `.positions[1].values[0]`
+//!   (`stride_lcmtypes::nested`). `echo` and the JSON and CSV exports keep the plain arrays;
 //! - a message this build cannot decode (unknown fingerprint, or broken) keeps its LCM bytes,
 //!   as logged, on a channel with the same topic, message encoding `lcm` and no schema; nothing
 //!   is dropped, and the export counts these messages per channel.
@@ -99,7 +104,7 @@ fn write_mcap(
     let mut channels: HashMap<(String, Option<&'static str>), u16> = HashMap::new();
     let mut counts: BTreeMap<String, ChannelExport> = BTreeMap::new();
     for e in lcm::LogReader::open(log)?.filter(|e| filter.is_match(&e.channel)) {
-        let (ty, data) = match stride_lcmtypes::decode_json(&e.data) {
+        let (ty, data) = match stride_lcmtypes::decode_nested_json(&e.data) {
             Some((ty, Ok(value))) => (Some(ty), serde_json::to_vec(&value)?),
             _ => (None, e.data.clone()),
         };
@@ -109,7 +114,7 @@ fn write_mcap(
             None => {
                 let id = match ty {
                     Some(ty) => {
-                        let schema = stride_lcmtypes::json_schema(ty)
+                        let schema = stride_lcmtypes::nested_json_schema(ty)
                             .with_context(|| format!("no JSON Schema for {ty}"))?;
                         let schema_id = out.add_schema(ty, SCHEMA_ENCODING, schema.as_bytes())?;
                         out.add_channel(schema_id, &e.channel, JSON_ENCODING, &BTreeMap::new())?

@@ -338,11 +338,18 @@ fn check_value(ty: &str, v: &Value, data: &[u8]) {
             );
             check_header(&v["header"], &m.header);
             assert_eq!(v["num_points"], m.num_points);
+            // An array of arrays: each point an object holding its coordinates under "values".
             let points = v["points"].as_array().unwrap();
             assert_eq!(points.len(), m.points.len());
+            assert!(!points.is_empty());
             for (p, q) in points.iter().zip(&m.points) {
-                floats(p, q);
+                assert_eq!(keys(p), ["values"], "{p}");
+                floats(&p["values"], q);
             }
+            assert_eq!(
+                v["points"][1]["values"][0], "inf",
+                "the path .points[1].values[0]"
+            );
             assert_eq!(v["num_intensities"], m.num_intensities);
             floats(&v["intensities"], &m.intensities);
         }
@@ -399,6 +406,15 @@ fn mcap_export_keeps_every_message_in_order_with_its_time_and_values() {
                 assert_eq!(s["type"], "object");
                 let v: Value = serde_json::from_slice(&m.data).unwrap();
                 assert_eq!(keys(&s["properties"]), keys(&v), "schema and message agree");
+                if ty == "stride.point_cloud_t" {
+                    assert_eq!(
+                        s["properties"]["points"]["items"],
+                        json!({"type": "object",
+                               "properties": {"values": {"type": "array", "items": {"type": "number"},
+                                                         "minItems": 3, "maxItems": 3}},
+                               "required": ["values"], "additionalProperties": false})
+                    );
+                }
                 check_value(ty, &v, data);
             }
             None => {
