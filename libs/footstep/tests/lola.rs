@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use proptest::prelude::*;
-use stride_footstep::geom::{v2, wrap, V2};
+use stride_footstep::geom::{v2, V2};
 use stride_footstep::lola::{
-    mid, place, plan, step_cost, suggestion_count, unplace, Mode, Settings, World,
+    open_floor_h, place, plan, step_cost, suggestion_count, unplace, Mode, Settings, World,
 };
 use stride_footstep::plan::{Foot, Plan, Stats, Status};
 use stride_footstep::scene::Scene;
@@ -195,11 +195,8 @@ proptest! {
         lx in -0.2f64..0.5, ly in -0.05f64..0.25, phi in -0.4f64..0.4, turn in -0.2f64..0.2,
     ) {
         let s = Settings::new(Mode::Thesis);
-        let h = |f: &Foot| {
-            let m = mid(f, s.robot.width);
-            let dth = s.w_theta * wrap(f.yaw - gyaw);
-            (m.dist(v2(gx, gy)).powi(2) + dth * dth).sqrt()
-        };
+        // The planner's own heuristic, not a copy of its formula.
+        let h = |f: &Foot| open_floor_h(&s, f, v2(gx, gy), gyaw);
         let stance = Foot { p: v2(x, y), z: 0.0, yaw, left };
         let next = place(&stance, (lx, ly, phi), s.robot.width);
         let c = step_cost(&s, (lx, ly, phi), turn);

@@ -552,6 +552,16 @@ pub fn mid(f: &Foot, width: f64) -> V2 {
 /// Within this distance of the goal (m) a step straight onto the goal pose is tried.
 const GOAL_STEP: f64 = 0.5;
 
+/// The search's heuristic on open floor (no pre-planner coupling): the distance from the
+/// feet's midpoint to the goal, with the heading error weighted by `w_theta`, as one
+/// Euclidean length (the thesis's Eq. 4.16). The coupled heuristics take the larger of this
+/// and the pre-planner's way.
+pub fn open_floor_h(s: &Settings, f: &Foot, goal: V2, goal_yaw: f64) -> f64 {
+    let m = mid(f, s.robot.width);
+    let dth = s.w_theta * wrap(f.yaw - goal_yaw);
+    (m.dist(goal).powi(2) + dth * dth).sqrt()
+}
+
 struct Problem<'a> {
     world: &'a World,
     s: &'a Settings,
@@ -580,7 +590,7 @@ impl Problem<'_> {
     fn h(&self, f: &Foot) -> f64 {
         let m = mid(f, self.s.robot.width);
         let dth = self.s.w_theta * wrap(f.yaw - self.goal_yaw);
-        let e = (m.dist(self.goal).powi(2) + dth * dth).sqrt();
+        let e = open_floor_h(self.s, f, self.goal, self.goal_yaw);
         if let (Some(w), true) = (&self.way, self.s.couple_heuristic) {
             // Coupling 1 (Eq. 4.18, w⊥ = 0): the way's length from the projection on.
             let (l_g, _, _) = w.project(m);
