@@ -482,3 +482,36 @@ fn b7_closed_loop_with_a_person_stepping_in() {
         (stance.p + swing.p) * 0.5
     );
 }
+
+/// "Optimal (bound 1)" checked, not taken from the planner: on small scenes the improved
+/// plan costs what a plain exhaustive search finds, Dijkstra on the same lattice with no
+/// heuristic (weight 1, no scouting pass, no strides, no expansion cap).
+#[test]
+fn an_improved_plan_with_bound_1_costs_what_dijkstra_finds() {
+    for name in ["kaist-b1", "kaist-b10-b1", "kaist-b2-m045"] {
+        let (i, _) = run(name, Mode::Improved);
+        assert_eq!(i.bound, Some(1.0), "{name}: {}", i.detail);
+        let (d, _) = run_with(name, Mode::Improved, |s| {
+            s.heuristic = Heuristic::Zero;
+            s.weights = vec![1.0];
+            s.scout = None;
+            s.strides = 1;
+            s.max_expansions = u64::MAX;
+        });
+        assert_eq!(d.status, Status::Ok, "{name}: {}", d.detail);
+        // No heuristic: it expands far more than the guided search.
+        assert!(
+            d.stats.expansions > 5 * i.stats.expansions,
+            "{name}: {} vs {}",
+            d.stats.expansions,
+            i.stats.expansions
+        );
+        assert!(
+            (i.cost - d.cost).abs() <= 1e-6 * d.cost,
+            "{name}: improved {} against exhaustive {} ({} expansions)",
+            i.cost,
+            d.cost,
+            d.stats.expansions
+        );
+    }
+}
