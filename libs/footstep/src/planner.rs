@@ -93,8 +93,7 @@ impl Which {
     /// (their paths run between the feet).
     pub fn replan_inflation(self, faithful: bool) -> f64 {
         match self {
-            Which::Archie if faithful => Params::default().inflation,
-            Which::Archie => Params::improved().inflation,
+            Which::Archie => Which::archie_params(faithful, None).inflation,
             _ => 0.1,
         }
     }
