@@ -792,41 +792,7 @@ pub fn plan_from(
     });
     let acts = ordered_actions(p, s.actions);
     let alpha = kaist::alpha(p, &acts);
-    let field = (s.heuristic == Heuristic::Dijkstra2d).then(|| {
-        // Every node's centre is the middle of a stance-to-swing ellipse, which is free of
-        // tall cells for FOOT.0 / 2 around it: the field keeps that far from them, less the
-        // cells' half-diagonal.
-        let limit = ground + s.feasibility.body_height;
-        let clear = FOOT.0 / 2.0 - g.res * std::f64::consts::FRAC_1_SQRT_2;
-        let mut open = g.clone();
-        open.h =
-            g.h.iter()
-                .map(|&h| if h.is_nan() || h <= limit { 0.0 } else { 1.0 })
-                .collect();
-        let mut grown = open.clone();
-        let r = (clear / g.res).floor() as i64;
-        for j in 0..g.ny as i64 {
-            for i in 0..g.nx as i64 {
-                if open.h[j as usize * g.nx + i as usize] == 0.0 {
-                    continue;
-                }
-                for b in -r..=r {
-                    for a in -r..=r {
-                        let (x, y) = (i + a, j + b);
-                        if ((a * a + b * b) as f64).sqrt() * g.res <= clear
-                            && x >= 0
-                            && y >= 0
-                            && (x as usize) < g.nx
-                            && (y as usize) < g.ny
-                        {
-                            grown.h[y as usize * g.nx + x as usize] = 1.0;
-                        }
-                    }
-                }
-            }
-        }
-        grown.distance_field(goal, |h| h == 0.0)
-    });
+    let field = (s.heuristic == Heuristic::Dijkstra2d).then(|| way_field(world, s, ground, goal));
     let lattice = mode == Mode::Improved;
     stats.prepare = t0.elapsed();
     let t1 = Instant::now();
@@ -945,6 +911,82 @@ pub fn plan_from(
         }
         None => Plan::failed(Status::NoPath, why, stats),
     }
+}
+
+/// The 2-D distance field to `goal` of [`Heuristic::Dijkstra2d`], for a search whose start
+/// stands on `ground`.
+fn way_field(world: &World, s: &Settings, ground: f64, goal: V2) -> Vec<f64> {
+    let g = &world.grid;
+    // Every node's centre is the middle of a stance-to-swing ellipse, which is free of
+    // tall cells for FOOT.0 / 2 around it: the field keeps that far from them, less the
+    // cells' half-diagonal.
+    let limit = ground + s.feasibility.body_height;
+    let clear = FOOT.0 / 2.0 - g.res * std::f64::consts::FRAC_1_SQRT_2;
+    let mut open = g.clone();
+    open.h =
+        g.h.iter()
+            .map(|&h| if h.is_nan() || h <= limit { 0.0 } else { 1.0 })
+            .collect();
+    let mut grown = open.clone();
+    let r = (clear / g.res).floor() as i64;
+    for j in 0..g.ny as i64 {
+        for i in 0..g.nx as i64 {
+            if open.h[j as usize * g.nx + i as usize] == 0.0 {
+                continue;
+            }
+            for b in -r..=r {
+                for a in -r..=r {
+                    let (x, y) = (i + a, j + b);
+                    if ((a * a + b * b) as f64).sqrt() * g.res <= clear
+                        && x >= 0
+                        && y >= 0
+                        && (x as usize) < g.nx
+                        && (y as usize) < g.ny
+                    {
+                        grown.h[y as usize * g.nx + x as usize] = 1.0;
+                    }
+                }
+            }
+        }
+    }
+    grown.distance_field(goal, |h| h == 0.0)
+}
+
+/// The heuristic that the bounded passes of a search from `stance` and `swing` (as for
+/// [`plan_from`]) to `goal` give the node whose stance foot is `at`, placed from `other`, in
+/// energy units; `None` when a foot of the start has no foothold. Exposed so that tests can
+/// check it against exhaustive searches.
+pub fn heuristic(
+    (stance, swing): (Foot, Foot),
+    goal: V2,
+    world: &World,
+    s: &Settings,
+    at: Foot,
+    other: Foot,
+) -> Option<f64> {
+    let mut ground = f64::INFINITY;
+    for f in [stance, swing] {
+        ground = ground.min(world.foothold(&f, world.grid.height(f.p), &s.feasibility)?);
+    }
+    let acts = ordered_actions(&s.cost, s.actions);
+    let pr = Problem {
+        world,
+        s,
+        alpha: kaist::alpha(&s.cost, &acts),
+        acts,
+        goal,
+        field: (s.heuristic == Heuristic::Dijkstra2d).then(|| way_field(world, s, ground, goal)),
+        lattice: true,
+        deadline: Instant::now(),
+        scouting: Cell::new(false),
+        bearings: RefCell::new(Vec::new()),
+    };
+    Some(pr.h(&Node {
+        stance: at,
+        other,
+        g: 0.0,
+        parent: None,
+    }))
 }
 
 /// The successors the search would make from the stance foot `stance` with the other foot at
