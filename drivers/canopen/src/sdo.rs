@@ -461,6 +461,8 @@ pub struct Download {
     sent: usize,
     toggle: bool,
     started: bool,
+    /// The segments have begun (the first one sent, if only an empty one).
+    segmenting: bool,
 }
 
 impl Download {
@@ -473,6 +475,7 @@ impl Download {
             sent: 0,
             toggle: false,
             started: false,
+            segmenting: false,
         }
     }
 
@@ -492,6 +495,7 @@ impl Download {
     }
 
     fn next_segment(&mut self) -> ClientRequest {
+        self.segmenting = true;
         let end = (self.sent + 7).min(self.data.len());
         let chunk = self.data[self.sent..end].to_vec();
         let req = ClientRequest::DownloadSegment {
@@ -515,7 +519,9 @@ impl Download {
                 sub: *sub,
                 code: *code,
             }),
-            ServerResponse::DownloadInitiated { index, sub } if self.started && self.sent == 0 => {
+            ServerResponse::DownloadInitiated { index, sub }
+                if self.started && !self.segmenting =>
+            {
                 if (*index, *sub) != (self.index, self.sub) {
                     return Err(protocol("answer for another object"));
                 }
@@ -525,7 +531,7 @@ impl Download {
                     Ok(Step::Send(self.next_segment()))
                 }
             }
-            ServerResponse::DownloadSegmentAck { toggle } if self.sent > 0 => {
+            ServerResponse::DownloadSegmentAck { toggle } if self.segmenting => {
                 if *toggle != self.toggle {
                     return Err(SdoError::Protocol {
                         reason: "toggle bit not alternated",

@@ -229,6 +229,15 @@ const DOWNLOAD_14: &[Wire] = &[
     (S, 0x581, [0x30, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00]),
 ];
 
+/// 0 bytes (an empty domain or string): a size of 0 and one segment that carries nothing
+/// (n = 7 -> 0x0e, c = 1 -> 0x0f); an expedited transfer cannot carry less than one byte.
+const DOWNLOAD_0: &[Wire] = &[
+    (C, 0x601, [0x21, 0x00, 0x20, 0x00, 0x00, 0x00, 0x00, 0x00]),
+    (S, 0x581, [0x60, 0x00, 0x20, 0x00, 0x00, 0x00, 0x00, 0x00]),
+    (C, 0x601, [0x0f, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00]),
+    (S, 0x581, [0x20, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00]),
+];
+
 #[test]
 fn a_10_byte_download_ends_with_a_3_byte_segment_n_4() {
     write(DOWNLOAD_10, b"0123456789").unwrap();
@@ -245,6 +254,16 @@ fn a_7_byte_download_is_one_full_last_segment() {
 fn a_14_byte_download_is_two_full_segments_and_no_empty_third() {
     write(DOWNLOAD_14, b"Harmonica Gold").unwrap();
     assert_eq!(serve(DOWNLOAD_14, b"").domain(), b"Harmonica Gold");
+}
+
+#[test]
+fn an_empty_download_is_one_segment_with_n_7() {
+    write(DOWNLOAD_0, b"").unwrap();
+    let mut od = Objects::with_name(b"");
+    od.0.get_mut(&(0x2000, 0)).unwrap().1 = b"old".to_vec();
+    let mut s = Server::new();
+    server(DOWNLOAD_0, &mut s, &mut od);
+    assert_eq!(od.domain(), b"");
 }
 
 /// python-canopen's test of a segmented download, test/test_sdo.py `test_segmented_download`
