@@ -728,6 +728,30 @@ impl Server {
         ServerResponse::Abort { index, sub, code }
     }
 
+    /// Serves one frame received on the server's COB-ID (0x600 + node), as [`on_request`]
+    /// does once decoded; an 8-byte client frame whose command specifier is none of CiA
+    /// 301's (7) ends any transfer under way with "command specifier not valid or unknown"
+    /// (0x05040001), naming its object (0/0 when none). Other frames that are no request
+    /// (too short, another COB-ID) get no answer.
+    ///
+    /// [`on_request`]: Server::on_request
+    pub fn on_frame(
+        &mut self,
+        frame: &CanFrame,
+        od: &mut impl Dictionary,
+    ) -> Option<ServerResponse> {
+        match ClientRequest::decode(frame) {
+            Ok((_, req)) => self.on_request(&req, od),
+            Err(_)
+                if node_of(frame, Function::SdoRx).is_ok()
+                    && frame.data_at_least(8).is_ok_and(|d| d[0] >> 5 == 7) =>
+            {
+                Some(self.abort(AbortCode::BAD_COMMAND))
+            }
+            Err(_) => None,
+        }
+    }
+
     /// Serves one request; `None` when nothing is to be answered (a client's abort).
     pub fn on_request(
         &mut self,
