@@ -2,8 +2,10 @@
 //! CANopen master (NMT, SDO, PDO, SYNC, the CiA 402 state machine, EMCY) and ROBOTIS's
 //! `dynamixel_sdk` (Protocol 1.0 and 2.0) drive the fake devices over pseudo-terminals; and
 //! the project's own SLCAN bus and SDO client (and the Elmo master's bring-up) run against
-//! python-canopen's LocalNode. What passes here is what a real device's peer software expects
-//! of a device, and what a real server expects of our host side.
+//! python-canopen's LocalNode; and python-canopen's client and LocalNode, between themselves,
+//! give the frames of segmented SDO transfers that stride's client and server must put on the
+//! bus too. What passes here is what a real device's peer software expects of a device, and
+//! what a real server expects of our host side.
 //!
 //! The peers are the pinned packages of `tests/peers/requirements.txt`, which `scripts/test`
 //! installs into `target/peers/` (and says so with `STRIDE_REQUIRE_PEERS`, so that a missing
@@ -14,7 +16,9 @@ use std::process::Command;
 use std::time::Duration;
 
 use stride_canopen::frame::NodeId;
-use stride_canopen::sdo::{AbortCode, SdoError};
+use stride_canopen::sdo::{
+    AbortCode, ClientRequest, Dictionary, Download, SdoError, Server, ServerResponse, Step, Upload,
+};
 use stride_canopen_host::{ignore, sdo_read, sdo_write, HostError};
 use stride_tests::{pty_rig, wait_pty, Proc};
 
@@ -186,4 +190,111 @@ fn our_slcan_bus_and_sdo_client_against_python_canopen_local_node() {
         matches!(&e, stride_elmo::MasterError::NoAnswer { what, .. } if what == "MP[1]=1"),
         "{e}"
     );
+}
+
+/// A dictionary for stride's SDO server: 0x1008:00 (read-only) holding a name, 0x2000:00 a
+/// writable domain.
+struct NameAndDomain {
+    name: Vec<u8>,
+    domain: Vec<u8>,
+}
+
+impl Dictionary for NameAndDomain {
+    fn upload(&mut self, index: u16, sub: u8) -> Result<Vec<u8>, AbortCode> {
+        match (index, sub) {
+            (0x1008, 0) => Ok(self.name.clone()),
+            (0x2000, 0) => Ok(self.domain.clone()),
+            _ => Err(AbortCode::NO_OBJECT),
+        }
+    }
+    fn may_download(&mut self, index: u16, sub: u8, _: Option<u32>) -> Result<(), AbortCode> {
+        match (index, sub) {
+            (0x2000, 0) => Ok(()),
+            (0x1008, 0) => Err(AbortCode::READ_ONLY),
+            _ => Err(AbortCode::NO_OBJECT),
+        }
+    }
+    fn download(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
+        self.may_download(index, sub, None)?;
+        self.domain = data.to_vec();
+        Ok(())
+    }
+}
+
+/// A client transfer of stride's (first request `req`, answers through `step`) against
+/// stride's server, node 1: every frame on the bus as `ID#DATA`.
+fn stride_trace(
+    od: &mut NameAndDomain,
+    mut req: ClientRequest,
+    mut step: impl FnMut(&ServerResponse) -> Result<Step, SdoError>,
+) -> (Vec<String>, Vec<u8>) {
+    let node = NodeId::new(1).unwrap();
+    let line = |f: &stride_canopen::CanFrame| {
+        let hex: String = f.data().iter().map(|b| format!("{b:02X}")).collect();
+        format!("{:03X}#{hex}", f.raw_id())
+    };
+    let mut server = Server::new();
+    let mut lines = Vec::new();
+    loop {
+        let f = req.encode(node).unwrap();
+        lines.push(line(&f));
+        let (_, r) = ClientRequest::decode(&f).unwrap();
+        let f = server.on_request(&r, od).unwrap().encode(node).unwrap();
+        lines.push(line(&f));
+        match step(&ServerResponse::decode(&f).unwrap().1).unwrap() {
+            Step::Send(r) => req = r,
+            Step::Done(d) => return (lines, d),
+        }
+    }
+}
+
+/// python-canopen's client and LocalNode, against each other in one process, write and
+/// read the segmented transfers of drivers/canopen/tests/sdo_golden.rs (tests/peers/
+/// sdo_frames.py); stride's Download and Upload against stride's Server must put the same
+/// frames on the bus, byte for byte.
+#[test]
+fn segmented_sdo_frames_are_python_canopens() {
+    let Some(py) = python() else { return };
+    let out = script(&py, "sdo_frames.py", &[]);
+    let traces: std::collections::BTreeMap<&str, Vec<String>> = out
+        .lines()
+        .filter_map(|l| l.strip_prefix("trace "))
+        .map(|l| {
+            let mut w = l.split_whitespace();
+            (w.next().unwrap(), w.map(str::to_owned).collect())
+        })
+        .collect();
+    let downloads: [(&str, &[u8]); 5] = [
+        ("download-10", b"0123456789"),
+        ("download-7", b"ABCDEFG"),
+        ("download-14", b"Harmonica Gold"),
+        ("download-13", b"A long string"),
+        ("download-0", b""),
+    ];
+    for (name, data) in downloads {
+        let mut od = NameAndDomain {
+            name: Vec::new(),
+            domain: b"old".to_vec(),
+        };
+        let mut dl = Download::new(0x2000, 0, data.to_vec());
+        let first = dl.start();
+        let (lines, _) = stride_trace(&mut od, first, |r| dl.on_response(r));
+        assert_eq!(Some(&lines), traces.get(name), "{name}");
+        assert_eq!(od.domain, data, "{name}");
+    }
+    let uploads: [(&str, &[u8]); 2] = [
+        ("upload-14", b"Elmo Harmonica"),
+        ("upload-26", b"Tiny Node - Mega Domains !"),
+    ];
+    for (name, text) in uploads {
+        let mut od = NameAndDomain {
+            name: text.to_vec(),
+            domain: Vec::new(),
+        };
+        let mut up = Upload::new(0x1008, 0, 64);
+        let first = up.start();
+        let (lines, got) = stride_trace(&mut od, first, |r| up.on_response(r));
+        assert_eq!(Some(&lines), traces.get(name), "{name}");
+        assert_eq!(got, text, "{name}");
+    }
 }

@@ -461,6 +461,8 @@ pub struct Download {
     sent: usize,
     toggle: bool,
     started: bool,
+    /// The segments have begun (the first one sent, if only an empty one).
+    segmenting: bool,
 }
 
 impl Download {
@@ -473,6 +475,7 @@ impl Download {
             sent: 0,
             toggle: false,
             started: false,
+            segmenting: false,
         }
     }
 
@@ -492,6 +495,7 @@ impl Download {
     }
 
     fn next_segment(&mut self) -> ClientRequest {
+        self.segmenting = true;
         let end = (self.sent + 7).min(self.data.len());
         let chunk = self.data[self.sent..end].to_vec();
         let req = ClientRequest::DownloadSegment {
@@ -515,7 +519,9 @@ impl Download {
                 sub: *sub,
                 code: *code,
             }),
-            ServerResponse::DownloadInitiated { index, sub } if self.started && self.sent == 0 => {
+            ServerResponse::DownloadInitiated { index, sub }
+                if self.started && !self.segmenting =>
+            {
                 if (*index, *sub) != (self.index, self.sub) {
                     return Err(protocol("answer for another object"));
                 }
@@ -525,7 +531,7 @@ impl Download {
                     Ok(Step::Send(self.next_segment()))
                 }
             }
-            ServerResponse::DownloadSegmentAck { toggle } if self.sent > 0 => {
+            ServerResponse::DownloadSegmentAck { toggle } if self.segmenting => {
                 if *toggle != self.toggle {
                     return Err(SdoError::Protocol {
                         reason: "toggle bit not alternated",
@@ -720,6 +726,30 @@ impl Server {
             None => (0, 0),
         };
         ServerResponse::Abort { index, sub, code }
+    }
+
+    /// Serves one frame received on the server's COB-ID (0x600 + node), as [`on_request`]
+    /// does once decoded; an 8-byte client frame whose command specifier is none of CiA
+    /// 301's (7) ends any transfer under way with "command specifier not valid or unknown"
+    /// (0x05040001), naming its object (0/0 when none). Other frames that are no request
+    /// (too short, another COB-ID) get no answer.
+    ///
+    /// [`on_request`]: Server::on_request
+    pub fn on_frame(
+        &mut self,
+        frame: &CanFrame,
+        od: &mut impl Dictionary,
+    ) -> Option<ServerResponse> {
+        match ClientRequest::decode(frame) {
+            Ok((_, req)) => self.on_request(&req, od),
+            Err(_)
+                if node_of(frame, Function::SdoRx).is_ok()
+                    && frame.data_at_least(8).is_ok_and(|d| d[0] >> 5 == 7) =>
+            {
+                Some(self.abort(AbortCode::BAD_COMMAND))
+            }
+            Err(_) => None,
+        }
     }
 
     /// Serves one request; `None` when nothing is to be answered (a client's abort).

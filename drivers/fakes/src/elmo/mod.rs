@@ -50,7 +50,7 @@ use stride_canopen::ds402::State as DriveState;
 use stride_canopen::emcy::Emcy;
 use stride_canopen::frame::{CobId, Function, NodeId};
 use stride_canopen::nmt::State as NmtState;
-use stride_canopen::sdo::{self, ClientRequest};
+use stride_canopen::sdo;
 use stride_canopen::sync;
 
 use motion::Motor;
@@ -265,9 +265,7 @@ impl FakeElmo {
             return;
         }
         if id == CobId::of(Function::SdoRx, node).raw() {
-            if let Ok((_, req)) = ClientRequest::decode(f) {
-                self.on_sdo(&req, now);
-            }
+            self.on_sdo(f, now);
             return;
         }
         if self.nmt != NmtState::Operational {
@@ -280,9 +278,9 @@ impl FakeElmo {
         self.on_rpdo(id, f.data(), now);
     }
 
-    fn on_sdo(&mut self, req: &ClientRequest, now: Instant) {
+    fn on_sdo(&mut self, f: &CanFrame, now: Instant) {
         let mut server = std::mem::take(&mut self.sdo);
-        let resp = server.on_request(req, &mut od::Served { drive: self, now });
+        let resp = server.on_frame(f, &mut od::Served { drive: self, now });
         self.sdo = server;
         if let Some(Ok(frame)) = resp.map(|r| r.encode(self.cfg.node)) {
             self.send(frame);

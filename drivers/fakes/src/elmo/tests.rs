@@ -10,7 +10,7 @@ use stride_canopen::emcy::ElmoEmcy;
 use stride_canopen::heartbeat::ConsumerEntry;
 use stride_canopen::nmt;
 use stride_canopen::pdo;
-use stride_canopen::sdo::{AbortCode, SdoError, ServerResponse};
+use stride_canopen::sdo::{AbortCode, ClientRequest, SdoError, ServerResponse};
 use stride_canopen_host::{exchange, ignore, sdo_read, sdo_write, HostError};
 
 struct Host {
@@ -633,6 +633,20 @@ fn sdo_aborts_name_the_transfer_and_client_aborts_get_no_answer() {
             ..
         }
     ));
+    // A command specifier CiA 301 does not define (7, 0xE0) ends a transfer, naming it.
+    start_upload(&mut host);
+    let sdo_rx = CobId::of(Function::SdoRx, host.node).raw();
+    let unknown = CanFrame::standard(sdo_rx, &[0xe0, 0, 0, 0, 0, 0, 0, 0]).unwrap();
+    host.bus.send(&unknown, Instant::now()).unwrap();
+    let f = host.recv_until(|f| f.raw_id() == sdo_tx);
+    assert_eq!(
+        ServerResponse::decode(&f).unwrap().1,
+        ServerResponse::Abort {
+            index: 0x1008,
+            sub: 0,
+            code: AbortCode::BAD_COMMAND
+        }
+    );
     finish(stop, h);
 }
 
