@@ -135,9 +135,12 @@ int main(int argc, char **argv) {
         qsort(rtt, n, sizeof(int64_t), cmp_i64);
         double sum = 0;
         for (int i = 0; i < n; i++) sum += rtt[i];
-        printf("impl=c mode=latency size=%d count=%d lost=%d p50_us=%.2f p90_us=%.2f p99_us=%.2f mean_us=%.2f\n",
+        printf("impl=c mode=latency size=%d count=%d lost=%d p50_us=%.2f p90_us=%.2f p99_us=%.2f mean_us=%.2f rtt_ns=",
                size, count, lost, pct(rtt, n, 50) / 1e3, pct(rtt, n, 90) / 1e3, pct(rtt, n, 99) / 1e3,
                n ? sum / n / 1e3 : 0.0);
+        /* Every round trip, sorted, so that percentiles can be pooled over runs. */
+        for (int i = 0; i < n; i++) printf(i ? ",%lld" : "%lld", (long long)rtt[i]);
+        printf("\n");
     } else if (!strcmp(mode, "source") && argc >= 6) {
         int size = atoi(argv[3]);
         uint64_t count = strtoull(argv[4], 0, 10), window = strtoull(argv[5], 0, 10);

@@ -141,11 +141,13 @@ fn main() {
             rtt.sort_unstable();
             let mean = rtt.iter().sum::<u64>() as f64 / rtt.len().max(1) as f64;
             println!(
-                "impl=rust mode=latency size={size} count={count} lost={lost} p50_us={:.2} p90_us={:.2} p99_us={:.2} mean_us={:.2}",
+                "impl=rust mode=latency size={size} count={count} lost={lost} p50_us={:.2} p90_us={:.2} p99_us={:.2} mean_us={:.2} rtt_ns={}",
                 pct(&rtt, 50.0) as f64 / 1e3,
                 pct(&rtt, 90.0) as f64 / 1e3,
                 pct(&rtt, 99.0) as f64 / 1e3,
-                mean / 1e3
+                mean / 1e3,
+                // Every round trip, sorted, so that percentiles can be pooled over runs.
+                rtt.iter().map(u64::to_string).collect::<Vec<_>>().join(",")
             );
         }
         "source" if args.len() >= 6 => {
