@@ -31,20 +31,30 @@ use stride_link_host::Session;
 use stride_serial::{pty_pair, wire_time, Paced, Transport};
 use stride_tests::percentile as pct;
 
-/// Counts the bytes that cross a transport.
+/// Counts the bytes that cross a transport, and the time spent inside it (writing, pacing,
+/// waiting for bytes): the rest of a cycle is the host software's own time.
 struct Counting<T> {
     inner: T,
     out: Arc<AtomicU64>,
     inn: Arc<AtomicU64>,
+    io_ns: Arc<AtomicU64>,
 }
 
 impl<T: Transport> Transport for Counting<T> {
     fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
         self.out.fetch_add(bytes.len() as u64, Ordering::Relaxed);
-        self.inner.write_all(bytes)
+        let t = Instant::now();
+        let r = self.inner.write_all(bytes);
+        self.io_ns
+            .fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        r
     }
     fn read_until(&mut self, buf: &mut [u8], deadline: Instant) -> io::Result<usize> {
-        let n = self.inner.read_until(buf, deadline)?;
+        let t = Instant::now();
+        let r = self.inner.read_until(buf, deadline);
+        self.io_ns
+            .fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        let n = r?;
         self.inn.fetch_add(n as u64, Ordering::Relaxed);
         Ok(n)
     }
@@ -157,9 +167,20 @@ fn schedule(model: &str, n: u8) -> Vec<(usize, usize)> {
     }
 }
 
-/// Runs `cycles` bridge cycles on a chain of `n` servos of `model`; returns (median cycle,
-/// p99 cycle, wire time of one cycle, timeouts).
-fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> (f64, f64, f64, u64) {
+/// What [`dynamixel`] measures, s.
+struct Cycles {
+    p50: f64,
+    p99: f64,
+    /// The wire time of one cycle's bytes.
+    wire: f64,
+    /// The host software's own time per cycle (the cycle less the time inside the transport),
+    /// median.
+    software_p50: f64,
+    timeouts: u64,
+}
+
+/// Runs `cycles` bridge cycles on a chain of `n` servos of `model`.
+fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> Cycles {
     let m = models::by_name(model).unwrap();
     let cfg = BridgeConfig {
         port: stride_serial::LineSpec::Device("bench".into()),
@@ -185,10 +206,12 @@ fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> (f64, f64, f64, u6
     let chain = FakeChain::new(m.protocol, servos, ChainLevers::default())
         .spawn(Paced::new(dev), stop.clone());
     let (out, inn) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));
+    let io_ns = Arc::new(AtomicU64::new(0));
     let line = Counting {
         inner: Paced::new(host),
         out: out.clone(),
         inn: inn.clone(),
+        io_ns: io_ns.clone(),
     };
     let mut c = Chain::new(line, cfg.chain()).unwrap();
     c.bring_up().unwrap();
@@ -197,10 +220,14 @@ fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> (f64, f64, f64, u6
     }
     let (o0, i0) = (out.load(Ordering::Relaxed), inn.load(Ordering::Relaxed));
     let mut times = Vec::with_capacity(cycles);
+    let mut own = Vec::with_capacity(cycles);
     for _ in 0..cycles {
+        let io0 = io_ns.load(Ordering::Relaxed);
         let t = Instant::now();
         c.cycle(t).unwrap();
-        times.push(t.elapsed().as_secs_f64());
+        let dt = t.elapsed().as_secs_f64();
+        times.push(dt);
+        own.push(dt - (io_ns.load(Ordering::Relaxed) - io0) as f64 * 1e-9);
     }
     let bytes = (out.load(Ordering::Relaxed) - o0 + inn.load(Ordering::Relaxed) - i0) as f64
         / cycles as f64;
@@ -208,12 +235,13 @@ fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> (f64, f64, f64, u6
     let timeouts = c.bus().stats().timeouts;
     stop.store(true, Ordering::Relaxed);
     let _ = chain.join();
-    (
-        pct(&mut times.clone(), 50.0),
-        pct(&mut times, 99.0),
+    Cycles {
+        p50: pct(&mut times.clone(), 50.0),
+        p99: pct(&mut times, 99.0),
         wire,
+        software_p50: pct(&mut own, 50.0),
         timeouts,
-    )
+    }
 }
 
 struct LinkFigures {
@@ -340,15 +368,16 @@ fn main() {
     let cycles = arg("--cycles", 500) as usize;
     let soak = Duration::from_secs(arg("--soak-secs", 600));
     println!(
-        "| bus | cycle | wire time | pty floor p50 | measured p50 | measured p99 | measured / wire | software: (wire + measured - floor) / wire | bar | verdict |"
+        "| bus | cycle | wire time | measured p50 | measured p99 | raw: measured / wire (pty included) | pty floor p50 | (wire + measured - floor) / wire | host software's own time per cycle p50 | (wire + own) / wire | bar | verdict |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut misses = 0;
     for (label, model, n, baud) in [
         ("Protocol 1.0, 1 Mbit/s", "AX-12A", 18u8, 1_000_000u32),
         ("Protocol 2.0, 4 Mbit/s", "XM430-W350", 12, 4_000_000),
     ] {
-        let (p50, p99, wire, timeouts) = dynamixel(model, n, baud, cycles);
+        let c = dynamixel(model, n, baud, cycles);
+        let wire = c.wire;
         let sched = schedule(model, n);
         let sched_bytes: usize = sched.iter().map(|(a, b)| a + b).sum();
         assert!(
@@ -356,19 +385,25 @@ fn main() {
             "the schedule of {model} is not the bridge's cycle"
         );
         let floor = pty_floor(&sched, baud, cycles);
-        let raw = p50 / wire;
-        let software = (wire + (p50 - floor).max(0.0)) / wire;
-        let ok = software <= 1.25 && timeouts == 0;
+        let raw = c.p50 / wire;
+        let less_floor = (wire + (c.p50 - floor).max(0.0)) / wire;
+        let own = (wire + c.software_p50) / wire;
+        // The bar is on the software's share, as two estimates: the pty floor subtracted, and
+        // the host's own time measured inside the process. Both must meet it; the raw ratio,
+        // which includes the pty's hand-overs a UART does not have, is reported beside them.
+        let ok = less_floor <= 1.25 && own <= 1.25 && c.timeouts == 0;
         misses += !ok as u32;
         println!(
-            "| {label} | {n} x {model}: sync write + {} ({} transactions) | {:.2} ms | {:.2} ms | {:.2} ms | {:.2} ms | {raw:.2} | {software:.2} | ≤ 1.25 | {} |",
+            "| {label} | {n} x {model}: sync write + {} ({} transactions) | {:.2} ms | {:.2} ms | {:.2} ms | {raw:.2} | {:.2} ms | {less_floor:.2} | {:.3} ms | {own:.3} | ≤ 1.25 (software) | {}{} |",
             if model.starts_with("AX") { "a read per servo" } else { "fast sync read" },
             sched.len(),
             wire * 1e3,
+            c.p50 * 1e3,
+            c.p99 * 1e3,
             floor * 1e3,
-            p50 * 1e3,
-            p99 * 1e3,
-            if ok { "pass" } else { "FAIL" }
+            c.software_p50 * 1e3,
+            if ok { "pass" } else { "FAIL" },
+            if raw > 1.25 { "; the raw ratio, pty included, misses" } else { "" },
         );
     }
     println!();
