@@ -2,7 +2,8 @@
 //! against the code lcm-gen writes for C, Java and Python, field by field, both ways.
 //!
 //! Rust draws random instances with edge values ([`Rng::with_edges`]: NaN, infinities,
-//! signed zeros, subnormals, empty and long arrays, long and non-ASCII UTF-8 strings) and
+//! signed zeros, subnormals, integers' extremes, empty and long arrays, long and non-ASCII
+//! UTF-8 strings) and
 //! encodes them. Each peer decodes the bytes with lcm-gen's code and prints every leaf
 //! field as `PATH VALUE` (floats as their bits, strings as the hex of their UTF-8 bytes),
 //! which must be what Rust's own dump of the instance says. The other way, each peer reads
@@ -489,6 +490,11 @@ fn the_random_instances_have_edge_values() {
         ("a 4-byte UTF-8 character", "f09f9880"),
         ("a 3-byte UTF-8 character", "e282ac"),
         ("an array of 100 or more", "[100]"),
+        ("the least int64_t", " -9223372036854775808\n"),
+        ("the greatest int64_t", " 9223372036854775807\n"),
+        ("the least int32_t", " -2147483648\n"),
+        ("the least int8_t", " -128\n"),
+        ("a byte 255", " 255\n"),
     ] {
         assert!(all.contains(needle), "no instance has {what} ({needle:?})");
     }

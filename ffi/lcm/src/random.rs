@@ -82,7 +82,8 @@ impl Rng {
     }
 
     /// A generator seeded with `seed` that also draws edge values: NaN, infinities, signed
-    /// zeros, subnormal and extreme floats, and any bit pattern; empty and long arrays (64
+    /// zeros, subnormal and extreme floats, and any bit pattern; integers' extremes (see
+    /// [`Rng::int`]); empty and long arrays (64
     /// to 120 elements while the budget lasts, so an `int8_t` size still fits); empty, long
     /// (up to 600 characters) and non-ASCII UTF-8 strings (characters of 1 to 4 bytes,
     /// controls included, never NUL).
@@ -123,6 +124,18 @@ impl Rng {
         x ^= x >> 27;
         self.state = x;
         x.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+
+    /// Random bits for an integer of `bits` bits, to be cast to it (with edges, a quarter of
+    /// them 0, 1, all ones (-1, or 255 for a byte), or a signed type's least or greatest
+    /// value).
+    pub fn int(&mut self, bits: u32) -> u64 {
+        if self.edges && self.below(4) == 0 {
+            let bits = bits.clamp(1, 64);
+            let min = 1u64 << (bits - 1);
+            return [0, 1, u64::MAX, min.wrapping_neg(), min - 1][self.below(5) as usize];
+        }
+        self.next_u64()
     }
 
     /// A number in `0..n` (0 when `n` is 0).
