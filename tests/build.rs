@@ -1,5 +1,7 @@
 //! Builds the C side of the compatibility tests: lcm-gen's C code for every stride type, plus a
-//! harness that decodes bytes with it and encodes them again; and the Rust list of cases.
+//! harness that decodes bytes with it and encodes them again; and the Rust list of cases. Also
+//! the peers of the cross-language value tests (lcm-gen's C, Java and Python code with the
+//! dumpers and builders `xlang/gen.py` writes).
 
 use std::fmt::Write;
 use std::path::PathBuf;
