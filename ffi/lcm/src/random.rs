@@ -83,10 +83,9 @@ impl Rng {
 
     /// A generator seeded with `seed` that also draws edge values: NaN, infinities, signed
     /// zeros, subnormal and extreme floats, and any bit pattern; integers' extremes (see
-    /// [`Rng::int`]); empty and long arrays (64
-    /// to 120 elements while the budget lasts, so an `int8_t` size still fits); empty, long
-    /// (up to 600 characters) and non-ASCII UTF-8 strings (characters of 1 to 4 bytes,
-    /// controls included, never NUL).
+    /// [`Rng::int`]); empty and long arrays (64 to 120 elements while the budget lasts, so
+    /// an `int8_t` size still fits); empty, long (up to 600 characters) and non-ASCII UTF-8
+    /// strings (characters of 1 to 4 bytes, controls included, never NUL).
     pub fn with_edges(seed: u64) -> Rng {
         Rng {
             edges: true,
@@ -126,9 +125,9 @@ impl Rng {
         x.wrapping_mul(0x2545_f491_4f6c_dd1d)
     }
 
-    /// Random bits for an integer of `bits` bits, to be cast to it (with edges, a quarter of
-    /// them 0, 1, all ones (-1, or 255 for a byte), or a signed type's least or greatest
-    /// value).
+    /// Random bits for an integer of `bits` bits, to be cast to it. With edges, a quarter of
+    /// them are 0, 1, all ones (-1; 255 for a byte), or a signed type's least or greatest
+    /// value.
     pub fn int(&mut self, bits: u32) -> u64 {
         if self.edges && self.below(4) == 0 {
             let bits = bits.clamp(1, 64);
@@ -215,4 +214,50 @@ impl Rng {
 pub trait Random {
     /// A random instance.
     fn random(rng: &mut Rng) -> Self;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Rng;
+
+    #[test]
+    fn plain_draws_are_tame() {
+        let mut rng = Rng::new(7);
+        for _ in 0..2000 {
+            assert!(rng.f64().is_finite() && rng.f32().is_finite());
+            assert!(rng.size() <= 3);
+            assert!(rng.string().bytes().all(|b| (b' '..=b'~').contains(&b)));
+        }
+    }
+
+    #[test]
+    fn edge_draws_reach_the_edges() {
+        let mut rng = Rng::with_edges(7);
+        let (mut i8s, mut i64s, mut f64s) = (Vec::new(), Vec::new(), Vec::new());
+        let mut longest = (0, 0);
+        for _ in 0..4000 {
+            rng.set_budget(Rng::DEFAULT_BUDGET);
+            i8s.push(rng.int(8) as i8);
+            i64s.push(rng.int(64) as i64);
+            f64s.push(rng.f64());
+            longest.0 = longest.0.max(rng.size());
+            let s = rng.string();
+            assert!(!s.contains('\0'));
+            longest.1 = longest.1.max(s.chars().count());
+        }
+        for v in [i8::MIN, i8::MAX, -1, 0, 1] {
+            assert!(i8s.contains(&v), "no int8 {v}");
+        }
+        for v in [i64::MIN, i64::MAX, -1, 0, 1] {
+            assert!(i64s.contains(&v), "no int64 {v}");
+        }
+        assert!(f64s.iter().any(|v| v.is_nan()));
+        assert!(f64s.contains(&f64::INFINITY) && f64s.contains(&f64::NEG_INFINITY));
+        assert!(
+            (64..=120).contains(&longest.0),
+            "longest array {}",
+            longest.0
+        );
+        assert!(longest.1 > 500, "longest string {}", longest.1);
+    }
 }
