@@ -274,11 +274,14 @@ const JAVA: Peer = Peer {
     },
 };
 
-/// lcm-gen's Java classes and the Java peer, compiled once per test run.
+/// lcm-gen's Java classes and the Java peer, compiled once per test run (into the build
+/// script's output, beside their sources).
 fn java_classes() -> &'static Path {
-    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
-        let dir = tempfile::tempdir().unwrap();
+        let dir = xlang_dir().join("java-classes");
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
         let src = xlang_dir().join("java");
         let skipped: Vec<PathBuf> = gen::SKIPS
             .iter()
@@ -313,7 +316,7 @@ fn java_classes() -> &'static Path {
                 "/usr/share/java/lcm.jar",
                 "-d",
             ])
-            .arg(dir.path())
+            .arg(&dir)
             .args(&files)
             .output()
             .expect("javac (install default-jdk-headless: scripts/test does)");
@@ -324,7 +327,6 @@ fn java_classes() -> &'static Path {
         );
         dir
     })
-    .path()
 }
 
 /// A value for a message: long strings shortened to their length and first bytes.
