@@ -3,9 +3,9 @@
 //!
 //! Rust draws random instances with edge values ([`Rng::with_edges`]: NaN, infinities,
 //! signed zeros, subnormals, integers' extremes, empty and long arrays, long and non-ASCII
-//! UTF-8 strings) and
-//! encodes them. Each peer decodes the bytes with lcm-gen's code and prints every leaf
-//! field as `PATH VALUE` (floats as their bits, strings as the hex of their UTF-8 bytes),
+//! UTF-8 strings) and encodes them. Each peer decodes the bytes with lcm-gen's code and
+//! prints every leaf field as `PATH VALUE` (floats as their bits, strings as the hex of
+//! their UTF-8 bytes),
 //! which must be what Rust's own dump of the instance says. The other way, each peer reads
 //! that text, builds lcm-gen's object from it and encodes it; Rust decodes those bytes, and
 //! its dump of what it decoded must again be the text.
@@ -13,8 +13,8 @@
 //! The dumpers and builders of all four languages are written by `tests/xlang/gen.py` from
 //! the .lcm files with a parser of its own; the Rust dumper only reads struct fields, so it
 //! shares no code with the codec it checks, and the peers call nothing of stride's. NaN is
-//! compared as NaN, not by its payload bits (lcm-gen's Java writes every NaN as Java's one
-//! NaN; the C bytes, payloads included, are compared by `c_compat.rs`).
+//! compared as NaN, not by its sign and payload bits: lcm-gen's Java writes every NaN as
+//! Java's one NaN, and Python widens a float to a double, which may change a NaN's bits.
 //!
 //! lcm-gen 1.3.1's Java keeps a string's bytes one to a `char` (Latin-1) both ways, so its
 //! dumper and builder read and write strings that way: a Java program handing it a
