@@ -1,5 +1,7 @@
 //! Builds the C side of the compatibility tests: lcm-gen's C code for every stride type, plus a
-//! harness that decodes bytes with it and encodes them again; and the Rust list of cases.
+//! harness that decodes bytes with it and encodes them again; and the Rust list of cases. Also
+//! the peers of the cross-language value tests (lcm-gen's C, Java and Python code with the
+//! dumpers and builders `xlang/gen.py` writes).
 
 use std::fmt::Write;
 use std::path::PathBuf;
@@ -149,6 +151,71 @@ fn main() {
     build.compile("stride_c_types");
 
     build_legacy_controller(&here, &out, &files);
+    build_xlang_peers(&here, &out, &cdir, &files);
+}
+
+/// The peers of the cross-language value tests (`tests/tests/xlang.rs`): `tests/xlang/gen.py`
+/// writes value dumpers and builders for C, Java, Python and Rust from the .lcm files; here
+/// lcm-gen writes its Java and Python code beside them, and the C peer is linked with
+/// lcm-gen's C code. The Java is compiled by the test (`javac` is slow to start).
+fn build_xlang_peers(
+    here: &std::path::Path,
+    out: &std::path::Path,
+    cdir: &std::path::Path,
+    files: &[PathBuf],
+) {
+    let gen = here.join("xlang/gen.py");
+    println!("cargo:rerun-if-changed={}", gen.display());
+    let dir = out.join("xlang");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let status = Command::new("python3")
+        .arg(&gen)
+        .arg(&dir)
+        .arg(format!(
+            "stride_lcmtypes={}",
+            here.join("../lcmtypes/lcm").display()
+        ))
+        .arg(format!(
+            "stride_tests::features={}",
+            here.join("lcm").display()
+        ))
+        .status()
+        .expect("running python3 (install python3: scripts/test does)");
+    assert!(status.success(), "tests/xlang/gen.py failed");
+    for f in files {
+        for (lang, flag) in [("java", "--jpath"), ("py", "--ppath")] {
+            let status = Command::new("lcm-gen")
+                .arg(format!("-{}", &lang[..1]))
+                .arg(flag)
+                .arg(dir.join(lang))
+                .arg(f)
+                .stdout(std::process::Stdio::null())
+                .status()
+                .expect("running lcm-gen");
+            assert!(
+                status.success(),
+                "lcm-gen -{lang} failed on {}",
+                f.display()
+            );
+        }
+    }
+    let exe = dir.join("xlang-c-peer");
+    let mut cmd = cc::Build::new().get_compiler().to_command();
+    cmd.args(["-O1", "-std=gnu99", "-I"]).arg(cdir);
+    for entry in std::fs::read_dir(cdir).unwrap() {
+        let p = entry.unwrap().path();
+        if p.extension().is_some_and(|e| e == "c") && !p.ends_with("harness.c") {
+            cmd.arg(p);
+        }
+    }
+    cmd.arg(dir.join("c/xlang_peer.c")).arg("-o").arg(&exe);
+    let status = cmd.status().expect("running the C compiler");
+    assert!(
+        status.success(),
+        "building the C peer of tests/xlang failed"
+    );
+    println!("cargo:rustc-env=STRIDE_XLANG={}", dir.display());
 }
 
 /// The legacy C controller (`tests/c/legacy_controller.c`), linked with lcm-gen's C code

@@ -436,7 +436,11 @@ impl Ctx<'_> {
                 TypeRef::Primitive(Primitive::Boolean) => "rng.bool()".into(),
                 TypeRef::Primitive(Primitive::Float) => "rng.f32()".into(),
                 TypeRef::Primitive(Primitive::Double) => "rng.f64()".into(),
-                TypeRef::Primitive(p) => format!("rng.next_u64() as {}", prim_rust(*p)),
+                TypeRef::Primitive(p) => {
+                    let t = prim_rust(*p);
+                    let bits: u32 = t[1..].parse().expect("an integer type");
+                    format!("rng.int({bits}) as {t}")
+                }
                 TypeRef::Struct(t) => {
                     format!("<{} as lcm::Random>::random(rng)", type_path(self.pkg, t))
                 }
