@@ -479,9 +479,35 @@ mod tests {
             "{msgs:?}"
         );
         assert!(b.board.braked(4) && b.board.duty(4) == 0);
+        // Told to drive again, it stays braked (no duty reaches it, so it does not trip again).
         b.send(&duty(4, 5000));
-        b.run(20);
+        let msgs = b.run(20);
         assert!(b.board.braked(4), "a tripped joint stays braked");
+        assert!(
+            !msgs.iter().any(|m| matches!(m, Message::Fault { .. })),
+            "{msgs:?}"
+        );
+        // Told to coast, it is released and its fault cleared: 0.3 A + 5 A undriven does not
+        // trip.
+        b.send(&Message::Command(vec![JointCommand {
+            joint: 4,
+            mode: Mode::Coast,
+            value: 0,
+        }]));
+        let msgs = b.run(20);
+        assert!(!b.board.braked(4));
+        assert!(
+            !msgs.iter().any(|m| matches!(m, Message::Fault { .. })),
+            "{msgs:?}"
+        );
+        let Some(Message::State { joints, .. }) = msgs
+            .iter()
+            .rev()
+            .find(|m| matches!(m, Message::State { .. }))
+        else {
+            panic!("no state: {msgs:?}");
+        };
+        assert_eq!(joints[4].flags, 0, "{:?}", joints[4]);
         // Beyond the duty limit: refused.
         let seq = b.send(&duty(0, 9001));
         let msgs = b.run(5);
