@@ -14,7 +14,7 @@
 
 #define DUE_BOARD_API extern "C" __attribute__((visibility("default")))
 
-/* The plant's time step, and so the longest the sketch goes between two loop() calls, µs. */
+/* The plant's time step, µs. */
 static const uint64_t STEP_US = 1000;
 
 /* Whether this copy has been powered up already: a copy is for one board. */
@@ -33,8 +33,11 @@ DUE_BOARD_API int due_board_power_up(const due_plant_config *cfg) {
     return 0;
 }
 
-/* Runs the clock dt_us forwards: the plant in steps of at most STEP_US, the sketch's loop()
- * after each (once when dt_us is 0). */
+/* Runs the clock dt_us forwards: the plant in steps of at most STEP_US, then the sketch's loop()
+ * once, which sees the time that passed since its last turn (as a loop held up by a long write
+ * does). The harness calls this about every millisecond, or after it has written out what the
+ * board sent, which at the line's pace takes the wire time: so, as on the board, a sketch
+ * that sends more than the line carries sends less often, rather than building a queue. */
 DUE_BOARD_API void due_board_run(uint64_t dt_us) {
     uint64_t t = host_board_time_us();
     const uint64_t end = t + dt_us;
@@ -43,11 +46,8 @@ DUE_BOARD_API void due_board_run(uint64_t dt_us) {
         due_plant_step((double)step / 1e6);
         t += step;
         host_board_set_time_us(t);
-        loop();
     }
-    if (dt_us == 0) {
-        loop();
-    }
+    loop();
 }
 
 /* Bytes from the host, into the serial port's buffer. */
