@@ -33,12 +33,8 @@ DUE_BOARD_API int due_board_power_up(const due_plant_config *cfg) {
     return 0;
 }
 
-/* Runs the clock dt_us forwards: the plant in steps of at most STEP_US, then the sketch's loop()
- * once, which sees the time that passed since its last turn (as a loop held up by a long write
- * does). The harness calls this about every millisecond, or after it has written out what the
- * board sent, which at the line's pace takes the wire time: so, as on the board, a sketch
- * that sends more than the line carries sends less often, rather than building a queue. */
-DUE_BOARD_API void due_board_run(uint64_t dt_us) {
+/* Runs the clock dt_us forwards, the plant in steps of at most STEP_US. */
+DUE_BOARD_API void due_board_advance(uint64_t dt_us) {
     uint64_t t = host_board_time_us();
     const uint64_t end = t + dt_us;
     while (t < end) {
@@ -47,8 +43,13 @@ DUE_BOARD_API void due_board_run(uint64_t dt_us) {
         t += step;
         host_board_set_time_us(t);
     }
-    loop();
 }
+
+/* One turn of the sketch's loop(), which sees the time that passed since its last turn. The
+ * harness turns it about every millisecond, or after it has written out what the board sent,
+ * which at the line's pace takes the wire time: so, as on a board whose Serial.write blocks, a
+ * sketch that sends more than the line carries sends less often, rather than build a queue. */
+DUE_BOARD_API void due_board_loop(void) { loop(); }
 
 /* Bytes from the host, into the serial port's buffer. */
 DUE_BOARD_API void due_board_receive(const uint8_t *bytes, size_t n) {

@@ -78,7 +78,8 @@ impl DueLevers {
 /// The functions the board library exports (`c/due_board.cpp`).
 struct Api {
     power_up: unsafe extern "C" fn(*const DueConfig) -> i32,
-    run: unsafe extern "C" fn(u64),
+    advance: unsafe extern "C" fn(u64),
+    turn: unsafe extern "C" fn(),
     receive: unsafe extern "C" fn(*const u8, usize),
     take: unsafe extern "C" fn(*mut u8, usize) -> usize,
     joints: unsafe extern "C" fn() -> i32,
@@ -180,7 +181,8 @@ impl FakeDue {
         let api = unsafe {
             Api {
                 power_up: symbol(handle, "due_board_power_up"),
-                run: symbol(handle, "due_board_run"),
+                advance: symbol(handle, "due_board_advance"),
+                turn: symbol(handle, "due_board_loop"),
                 receive: symbol(handle, "due_board_receive"),
                 take: symbol(handle, "due_board_take"),
                 joints: symbol(handle, "due_board_joints"),
@@ -209,25 +211,27 @@ impl FakeDue {
         }
     }
 
-    /// Brings the board's clock to `now` (at most `MAX_GAP` at once), the firmware's loop
-    /// running all the way.
+    /// Brings the board's clock and the plant to `now` (at most `MAX_GAP` at once).
     fn advance(&mut self, now: Instant) {
         let dt = now.saturating_duration_since(self.last).min(MAX_GAP);
         self.last = self.last.max(now);
         // SAFETY: a plain call on a live board.
-        unsafe { (self.api.run)(dt.as_micros() as u64) }
+        unsafe { (self.api.advance)(dt.as_micros() as u64) }
     }
 
-    /// Bytes from the host, arrived at `now`.
+    /// Bytes from the host, arrived at `now` (the firmware reads them at its next turn, in
+    /// `poll`).
     pub fn receive(&mut self, bytes: &[u8], now: Instant) {
         self.advance(now);
         // SAFETY: bytes is valid for its length.
         unsafe { (self.api.receive)(bytes.as_ptr(), bytes.len()) }
     }
 
-    /// Advances to `now`; what the board sends.
+    /// Advances to `now` and gives the firmware a turn of its `loop()`; what the board sends.
     pub fn poll(&mut self, now: Instant) -> Vec<u8> {
         self.advance(now);
+        // SAFETY: a plain call on a live board.
+        unsafe { (self.api.turn)() }
         let mut out = vec![0u8; 4096];
         let mut n = 0;
         loop {
