@@ -1,5 +1,6 @@
-/* Just enough of the Arduino core's declarations to compile a sketch on the host as a syntax
- * and type check (scripts/firmware), when no Arduino toolchain is installed. */
+/* Just enough of the Arduino core's declarations to compile the sketch on the host: as a syntax
+ * and type check (scripts/firmware) when no Arduino toolchain is installed, and to run it as the
+ * fake board of the tests with host_board.cpp behind them (see host_board.h). */
 #ifndef ARDUINO_H_HOST_STUB
 #define ARDUINO_H_HOST_STUB
 #include <stdint.h>

@@ -1,4 +1,5 @@
-//! A host session against the fake Due board (the firmware's C codec) on a pty.
+//! A host session against the fake Due board (the firmware's own sketch, run on the host) on a
+//! pty.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -72,9 +73,11 @@ fn handshake_commands_state_and_nacks() {
         .unwrap();
     assert_eq!(
         (b.joints, b.watchdog_ms, b.firmware.as_str()),
-        (6, 100, "fake-due 1.0")
+        (6, 100, "stride-due 1.0")
     );
-    // Duty on joint 0: the state acknowledges the command and the joint moves.
+    // Duty on joint 0: the state acknowledges the command and reports the driver's current
+    // (300 mA idle and 6 A per unit of duty in the plant); the joint moves (the firmware does
+    // not read positions yet: the plant says so).
     let seq = s.send(&cmd).unwrap();
     let msgs = listen(&mut s, Duration::from_millis(300), true);
     let Some(Message::State { ack, joints, .. }) = last_state(&msgs) else {
@@ -82,7 +85,11 @@ fn handshake_commands_state_and_nacks() {
     };
     assert_eq!(*ack, seq);
     assert_eq!(joints[0].duty, 2000);
-    assert!(joints[0].position > 10_000, "{:?}", joints[0]); // > 0.1 rad
+    assert!(
+        (1400..=1600).contains(&joints[0].current),
+        "{:?}",
+        joints[0]
+    );
     assert!(msgs.iter().any(|m| matches!(m, Message::Imu { .. })));
     // Beyond the board's max duty: refused, nothing applied.
     let too_much = Message::Command(vec![JointCommand {
@@ -102,6 +109,7 @@ fn handshake_commands_state_and_nacks() {
     stop.store(true, Ordering::Relaxed);
     let board = board.join().unwrap();
     assert_eq!(board.duty(1), 0);
+    assert!(board.position(0) > 0.1, "{}", board.position(0));
 }
 
 #[test]

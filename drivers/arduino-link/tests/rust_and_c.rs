@@ -1,10 +1,11 @@
-//! The Rust codec and the firmware's C codec (`c/stride_link.c`, linked through the fake
-//! board) agree on random frames, both directions, byte for byte.
+//! The Rust codec and the firmware's C codec (`c/stride_link.c`, linked through stride-fakes)
+//! agree on random frames, both directions, byte for byte.
 
 use proptest::prelude::*;
 use stride_link::{crc16, Decoder, Frame};
 
-// The C codec is compiled into stride-fakes (the fake board is built on it).
+// The C codec is linked into stride-fakes (its build compiles it for this test, next to the
+// fake board, which runs the firmware on it).
 use stride_fakes as _;
 
 #[repr(C)]

@@ -6,7 +6,9 @@
  * over I2C, and brakes every motor when commands stop (the watchdog) or a current trips.
  *
  * The link codec is the portable C one (stride_link.h / stride_link.c, copied next to this
- * sketch by `scripts/firmware`), the same the host's tests talk to.
+ * sketch by `scripts/firmware`). The host's tests run this very sketch as their fake board
+ * (drivers/fakes: compiled against firmware/host-stubs, with simulated joints and IMU behind
+ * the pins), so what they exercise is what ships.
  */
 #include <Arduino.h>
 #include <Wire.h>

@@ -1,7 +1,7 @@
-//! `fake-due`: the fake Arduino Due board (the firmware's C codec) on a pseudo-terminal, as a
-//! process, for the end-to-end tests. A symlink at `--link` points to the terminal, as
+//! `fake-due`: the fake Arduino Due board (the firmware's own sketch run on the host, with
+//! simulated joints and IMU) on a pseudo-terminal, as a process, for the end-to-end tests. A symlink at `--link` points to the terminal, as
 //! `/dev/serial/by-id/` names do. SIGUSR1 pulls the cable and plugs it back a second later (a
-//! new terminal behind the same link, a freshly reset board). Each time it is plugged in, the
+//! new terminal behind the same link, a freshly reset board), printing where the joints were. Each time it is plugged in, the
 //! board spends `--boot-ms` in its boot loader first, deaf to the link, as a Due does when its
 //! port is opened. At SIGINT/SIGTERM it prints which joints are braked.
 
@@ -77,7 +77,10 @@ fn main() -> anyhow::Result<()> {
         if unplug.swap(false, Ordering::Relaxed) {
             // The cable comes out: the terminal and the link go away.
             stop.store(true, Ordering::Relaxed);
-            let _ = board.join();
+            if let Ok(b) = board.join() {
+                let at: Vec<f64> = (0..6).map(|j| b.position(j)).collect();
+                println!("unplugged; positions: {at:?}");
+            }
             let _ = std::fs::remove_file(&cli.link);
             drop(host_end);
             std::thread::sleep(Duration::from_secs(1));
