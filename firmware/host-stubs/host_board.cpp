@@ -23,6 +23,9 @@ struct Board {
     int mode[HOST_BOARD_PINS];
     int level[HOST_BOARD_PINS];
     double duty[HOST_BOARD_PINS];
+    /* Per pin: the last analogWrite value and how many times a write changed it. */
+    uint32_t pwm_value[HOST_BOARD_PINS];
+    uint64_t pwm_changes[HOST_BOARD_PINS];
     int write_bits, read_bits;
     bool serial_open;
     uint8_t rx[RX_CAP];
@@ -87,6 +90,8 @@ extern "C" int host_pin_level(uint8_t pin) {
 
 extern "C" double host_pin_duty(uint8_t pin) { return valid(pin) ? board.duty[pin] : 0; }
 
+extern "C" uint64_t host_pin_pwm_changes(uint8_t pin) { return valid(pin) ? board.pwm_changes[pin] : 0; }
+
 void pinMode(uint8_t pin, uint8_t mode) {
     if (valid(pin)) {
         board.mode[pin] = mode;
@@ -105,6 +110,10 @@ void analogWrite(uint32_t pin, uint32_t value) {
     if (valid(pin)) {
         double full = (double)((1UL << board.write_bits) - 1);
         board.mode[pin] = OUTPUT;
+        if (value != board.pwm_value[pin]) {
+            board.pwm_changes[pin]++;
+            board.pwm_value[pin] = value;
+        }
         board.duty[pin] = value >= full ? 1.0 : value / full;
         board.level[pin] = value > 0;
     }

@@ -44,6 +44,10 @@ int host_pin_mode(uint8_t pin);
 int host_pin_level(uint8_t pin);
 double host_pin_duty(uint8_t pin);
 
+/* How many analogWrite calls on a pin changed its value (a benchmark counts the commands the
+ * sketch acted on by them). */
+uint64_t host_pin_pwm_changes(uint8_t pin);
+
 /* Provided by the harness: the voltage on an analog input pin (A0 ...), V. */
 double host_world_analog_volts(uint8_t pin);
 

@@ -76,3 +76,5 @@ DUE_BOARD_API int due_board_duty(int joint) { return due_plant_duty(joint); }
 DUE_BOARD_API int due_board_braked(int joint) { return due_plant_braked(joint); }
 
 DUE_BOARD_API double due_board_position(int joint) { return due_plant_position(joint); }
+
+DUE_BOARD_API uint64_t due_board_pwm_changes(int joint) { return due_plant_pwm_changes(joint); }

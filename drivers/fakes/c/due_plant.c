@@ -59,6 +59,10 @@ static double duty_of(int i) {
     return host_pin_level(DIR_PIN[i]) ? -d : d;
 }
 
+uint64_t due_plant_pwm_changes(int joint_index) {
+    return joint_index >= 0 && joint_index < DUE_PLANT_JOINTS ? host_pin_pwm_changes(PWM_PIN[joint_index]) : 0;
+}
+
 int due_plant_braked(int joint_index) {
     return joint_index >= 0 && joint_index < DUE_PLANT_JOINTS && host_pin_level(BRAKE_PIN[joint_index]);
 }

@@ -8,6 +8,8 @@
 #ifndef DUE_PLANT_H
 #define DUE_PLANT_H
 
+#include <stdint.h>
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -37,6 +39,9 @@ void due_plant_set_tilt(double roll, double pitch);
 int due_plant_duty(int joint);
 int due_plant_braked(int joint);
 double due_plant_position(int joint);
+
+/* How many times the sketch changed a joint's PWM value (0 for a joint out of range). */
+uint64_t due_plant_pwm_changes(int joint);
 
 #ifdef __cplusplus
 }

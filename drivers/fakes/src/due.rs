@@ -61,6 +61,14 @@ pub struct DueLevers(Arc<Mutex<LeverState>>);
 struct LeverState {
     extra_ma: [f64; 8],
     tilt: (f64, f64),
+    /// What the running board's pins showed at its last turn: PWM changes per joint.
+    pwm_changes: [u64; 8],
+    /// Frame delimiters (zeros) the running board has written to its line: two a frame.
+    delimiters_sent: u64,
+    /// Asked: the board stops (its clock, its loop, its line) until released.
+    hold: bool,
+    /// The board has stopped, everything it wrote before on the line.
+    held: bool,
 }
 
 impl DueLevers {
@@ -72,6 +80,28 @@ impl DueLevers {
     /// The board is tilted by `roll` and `pitch`, rad.
     pub fn tilt(&self, roll: f64, pitch: f64) {
         self.0.lock().unwrap().tilt = (roll, pitch);
+    }
+
+    /// [`FakeDue::pwm_changes`] of the board running with these levers, as of its last turn.
+    pub fn pwm_changes(&self, joint: usize) -> u64 {
+        self.0.lock().unwrap().pwm_changes[joint.min(7)]
+    }
+
+    /// The frames the running board has written to its line (its frame delimiters counted:
+    /// each frame comes between two zeros, and holds none).
+    pub fn frames_sent(&self) -> u64 {
+        self.0.lock().unwrap().delimiters_sent / 2
+    }
+
+    /// Stops the running board (`true`: its clock, its loop and its line stand still) or lets
+    /// it go on; returns once it has done so, all it wrote before on the line. A benchmark
+    /// holds the board to count what crossed.
+    pub fn hold(&self, on: bool) {
+        self.0.lock().unwrap().hold = on;
+        let t0 = Instant::now();
+        while self.0.lock().unwrap().held != on && t0.elapsed() < Duration::from_secs(5) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
     }
 }
 
@@ -88,6 +118,7 @@ struct Api {
     duty: unsafe extern "C" fn(i32) -> i32,
     braked: unsafe extern "C" fn(i32) -> i32,
     position: unsafe extern "C" fn(i32) -> f64,
+    pwm_changes: unsafe extern "C" fn(i32) -> u64,
 }
 
 /// The last error of the dynamic loader.
@@ -191,6 +222,7 @@ impl FakeDue {
                 duty: symbol(handle, "due_board_duty"),
                 braked: symbol(handle, "due_board_braked"),
                 position: symbol(handle, "due_board_position"),
+                pwm_changes: symbol(handle, "due_board_pwm_changes"),
             }
         };
         // SAFETY: cfg is a valid #[repr(C)] struct for the call's duration.
@@ -279,6 +311,13 @@ impl FakeDue {
         unsafe { (self.api.position)(self.index(joint)) }
     }
 
+    /// How many times the firmware changed a joint's PWM output: with commands whose duty
+    /// differs from the last, the number of commands the board received and acted on.
+    pub fn pwm_changes(&self, joint: usize) -> u64 {
+        // SAFETY: as in duty.
+        unsafe { (self.api.pwm_changes)(self.index(joint)) }
+    }
+
     /// Runs the board on its own thread on `line` (wrap it in `stride_serial::Paced` for the
     /// line's timing) until `stop` is set.
     pub fn spawn(
@@ -290,6 +329,17 @@ impl FakeDue {
         std::thread::spawn(move || {
             let mut buf = [0u8; 512];
             while !stop.load(Ordering::Relaxed) {
+                {
+                    let mut l = levers.0.lock().unwrap();
+                    l.held = l.hold;
+                    if l.hold {
+                        drop(l);
+                        std::thread::sleep(Duration::from_millis(1));
+                        // The time held does not pass for the board.
+                        self.last = Instant::now();
+                        continue;
+                    }
+                }
                 let n = line
                     .read_until(&mut buf, Instant::now() + Duration::from_millis(1))
                     .unwrap_or(0);
@@ -300,6 +350,13 @@ impl FakeDue {
                     self.receive(&buf[..n], now);
                 }
                 let out = self.poll(now);
+                {
+                    let mut l = levers.0.lock().unwrap();
+                    for j in 0..self.joints.min(8) {
+                        l.pwm_changes[j] = self.pwm_changes(j);
+                    }
+                    l.delimiters_sent += out.iter().filter(|&&b| b == 0).count() as u64;
+                }
                 if !out.is_empty() && line.write_all(&out).is_err() {
                     std::thread::sleep(Duration::from_millis(1));
                 }
