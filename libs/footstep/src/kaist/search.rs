@@ -308,7 +308,25 @@ struct Problem<'a> {
     bearings: RefCell<Vec<f64>>,
 }
 
-impl Problem<'_> {
+impl<'a> Problem<'a> {
+    /// A problem on the fine lattice for looking at single nodes (their heuristic, their
+    /// successors) outside a search.
+    fn probe(world: &'a World, s: &'a Settings, goal: V2, field: Option<Vec<f64>>) -> Problem<'a> {
+        let acts = ordered_actions(&s.cost, s.actions);
+        Problem {
+            world,
+            s,
+            alpha: kaist::alpha(&s.cost, &acts),
+            acts,
+            goal,
+            field,
+            lattice: true,
+            deadline: Instant::now(),
+            scouting: Cell::new(false),
+            bearings: RefCell::new(Vec::new()),
+        }
+    }
+
     /// The heuristic of `n`, in energy units.
     fn h(&self, n: &Node) -> f64 {
         let p = &self.s.cost;
@@ -968,19 +986,8 @@ pub fn heuristic(
     for f in [stance, swing] {
         ground = ground.min(world.foothold(&f, world.grid.height(f.p), &s.feasibility)?);
     }
-    let acts = ordered_actions(&s.cost, s.actions);
-    let pr = Problem {
-        world,
-        s,
-        alpha: kaist::alpha(&s.cost, &acts),
-        acts,
-        goal,
-        field: (s.heuristic == Heuristic::Dijkstra2d).then(|| way_field(world, s, ground, goal)),
-        lattice: true,
-        deadline: Instant::now(),
-        scouting: Cell::new(false),
-        bearings: RefCell::new(Vec::new()),
-    };
+    let field = (s.heuristic == Heuristic::Dijkstra2d).then(|| way_field(world, s, ground, goal));
+    let pr = Problem::probe(world, s, goal, field);
     Some(pr.h(&Node {
         stance: at,
         other,
@@ -998,19 +1005,7 @@ pub fn successors(
     stance: Foot,
     other: Foot,
 ) -> Vec<(Foot, f64)> {
-    let acts = ordered_actions(&s.cost, s.actions);
-    let pr = Problem {
-        world,
-        s,
-        alpha: kaist::alpha(&s.cost, &acts),
-        acts,
-        goal,
-        field: None,
-        lattice: true,
-        deadline: Instant::now(),
-        scouting: Cell::new(false),
-        bearings: RefCell::new(Vec::new()),
-    };
+    let pr = Problem::probe(world, s, goal, None);
     let n = Node {
         stance,
         other,
