@@ -16,7 +16,7 @@ use std::time::Duration;
 use stride_footstep::geom::{v2, wrap, V2};
 
 use stride_footstep::kaist::search::{
-    apply, heuristic, plan, successors, Heuristic, Mode, Settings, World,
+    apply, heuristic, plan, successors, ActionSet, Heuristic, Mode, Settings, World,
 };
 use stride_footstep::kaist::{self, CostParams};
 use stride_footstep::plan::{Foot, Least};
@@ -256,11 +256,16 @@ const TERRAINS: [(&str, &str); 3] = [
 ];
 
 /// A uniform-cost search over the planner's own successors on `world` (its feasibility
-/// checks: footholds, step and body heights) with the lattice's duplicate detection. Returns
-/// the states made, as (stance, other, cost, parent), and which of them were expanded (whose
+/// checks: footholds, step and body heights) with every candidate action (the full set, so
+/// that no adaptive choice raises a cost) and the lattice's duplicate detection. Returns the
+/// states made, as (stance, other, cost, parent), and which of them were expanded (whose
 /// costs, and their parents', are exact).
 type States = Vec<(Foot, Foot, f64, Option<usize>)>;
 fn uniform_cost_on(world: &World, s: &Settings, stance: Foot, other: Foot) -> (States, Vec<usize>) {
+    let s = &Settings {
+        actions: ActionSet::FixedFull,
+        ..s.clone()
+    };
     let key = |f: &Foot| {
         (
             (f.p.x / 0.05).round() as i64,
