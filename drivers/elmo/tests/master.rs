@@ -5,7 +5,7 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::{bump, joint, minjerk, rows, sine, Rig};
+use common::{bump, joint, mean_speed, minjerk, rows, sine, Rig};
 use stride_canbus::{CanBus, MemBus};
 use stride_canopen::ds402::State as DriveState;
 use stride_canopen::emcy::{ElmoEmcy, Emcy};
@@ -237,11 +237,10 @@ fn a_chunk_plays_to_its_end_then_stops_within_the_limits() {
     let end = trace.last().unwrap().1[0];
     assert!((end - (0.2 + 0.16 / 120.0)).abs() < 2e-3, "ended at {end}");
     // No step in it: the speed between states never jumps by more than the acceleration
-    // limit allows over a SYNC period (with a margin for the motor's lag).
-    let v: Vec<f64> = trace
-        .windows(2)
-        .map(|w| (w[1].1[0] - w[0].1[0]) / (w[1].0 - w[0].0).as_secs_f64())
-        .collect();
+    // limit allows over a SYNC period (with a margin for the motor's lag). The speeds are
+    // taken per SYNC, as the drives sample them, not from when the states happened to
+    // arrive (a busy machine delivers two of them a millisecond apart).
+    let v: Vec<f64> = trace.windows(2).map(|w| mean_speed(w, 0)).collect();
     let max_dv = v
         .windows(2)
         .map(|w| (w[1] - w[0]).abs())
@@ -292,16 +291,10 @@ fn streamed_chunks_join_without_a_stop() {
         .filter(|e| matches!(e, Event::StreamStopped { .. }))
         .collect();
     assert_eq!(stops.len(), 1, "only the end of the stream stops: {ev:?}");
-    // Cruising at 0.5 rad/s through the joins. The states answer SYNCs 10 ms apart, so
-    // their spacing is a whole number of periods whatever their arrival's jitter; a SYNC
-    // sent late on a busy machine still samples the motor late, so the mean speed is taken
-    // over 200 ms (a few ms of lateness is a few per cent there) and no 50 ms stretch may
-    // slow as a stop between chunks would.
-    let speed = |w: &[(Instant, Vec<f64>)]| {
-        let (a, b) = (&w[0], &w[w.len() - 1]);
-        let periods = ((b.0 - a.0).as_secs_f64() / 0.01).round();
-        (b.1[0] - a.1[0]) / (periods * 0.01)
-    };
+    // Cruising at 0.5 rad/s through the joins. A SYNC sent late on a busy machine still
+    // samples the motor late, so the mean speed is taken over 200 ms (a few ms of lateness
+    // is a few per cent there) and no 50 ms stretch may slow as a stop between chunks would.
+    let speed = |w: &[(Instant, Vec<f64>)]| mean_speed(w, 0);
     let mean: Vec<f64> = trace.windows(21).take(30).map(speed).collect();
     assert!(mean.iter().all(|s| (s - v).abs() < 0.03), "{mean:?}");
     let short: Vec<f64> = trace.windows(6).take(45).map(speed).collect();

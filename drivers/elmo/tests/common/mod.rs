@@ -122,6 +122,18 @@ impl Rig {
     }
 }
 
+/// The SYNC period of the master's default configuration.
+pub const SYNC: f64 = 0.01;
+
+/// Joint `j`'s mean speed over a stretch of a recorded trace. The states answer SYNCs, so
+/// their spacing is a whole number of periods whatever their delivery's jitter: the time
+/// is counted in periods, not read off the arrival times.
+pub fn mean_speed(w: &[(Instant, Vec<f64>)], j: usize) -> f64 {
+    let (a, b) = (&w[0], &w[w.len() - 1]);
+    let periods = ((b.0 - a.0).as_secs_f64() / SYNC).round().max(1.0);
+    (b.1[j] - a.1[j]) / (periods * SYNC)
+}
+
 /// One period of a shape over `rows` rows 10 ms apart: joint `j` moves by
 /// `amplitude · (j + 1) / joints · p(ω, t)` at velocity `amplitude · (j + 1) / joints · v(ω, t)`.
 pub fn periodic(
