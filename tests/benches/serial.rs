@@ -176,7 +176,12 @@ struct Cycles {
     /// The host software's own time per cycle (the cycle less the time inside the transport),
     /// median.
     software_p50: f64,
-    timeouts: u64,
+    /// Instruction packets the measured cycles sent (tries included).
+    tries: u64,
+    /// Tries of the measured cycles that timed out and were tried again.
+    retried: u64,
+    /// Reads of the measured cycles given up after every try.
+    gave_up: u64,
 }
 
 /// Runs `cycles` bridge cycles on a chain of `n` servos of `model`.
@@ -219,6 +224,7 @@ fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> Cycles {
         c.cycle(Instant::now()).unwrap(); // warm up
     }
     let (o0, i0) = (out.load(Ordering::Relaxed), inn.load(Ordering::Relaxed));
+    let s0 = c.bus().stats();
     let mut times = Vec::with_capacity(cycles);
     let mut own = Vec::with_capacity(cycles);
     for _ in 0..cycles {
@@ -232,7 +238,11 @@ fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> Cycles {
     let bytes = (out.load(Ordering::Relaxed) - o0 + inn.load(Ordering::Relaxed) - i0) as f64
         / cycles as f64;
     let wire = wire_time(bytes.round() as usize, baud).as_secs_f64();
-    let timeouts = c.bus().stats().timeouts;
+    let s1 = c.bus().stats();
+    // A timeout is counted for each try that is repeated and once more for a read given up.
+    let retried = s1.retries - s0.retries;
+    let tries = s1.sent - s0.sent;
+    let gave_up = (s1.timeouts - s0.timeouts) - retried;
     stop.store(true, Ordering::Relaxed);
     let _ = chain.join();
     Cycles {
@@ -240,7 +250,9 @@ fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> Cycles {
         p99: pct(&mut times, 99.0),
         wire,
         software_p50: pct(&mut own, 50.0),
-        timeouts,
+        tries,
+        retried,
+        gave_up,
     }
 }
 
@@ -406,9 +418,9 @@ fn main() {
     let cycles = arg("--cycles", 500) as usize;
     let soak = Duration::from_secs(arg("--soak-secs", 600));
     println!(
-        "| bus | cycle | wire time | measured p50 | measured p99 | raw: measured / wire (pty included) | pty floor p50 | (wire + measured - floor) / wire | host software's own time per cycle p50 | (wire + own) / wire | bar | verdict |"
+        "| bus | cycle | wire time | measured p50 | measured p99 | raw: measured / wire (pty included) | pty floor p50 | (wire + measured - floor) / wire | host software's own time per cycle p50 | (wire + own) / wire | tries timed out and repeated | reads given up | bar | verdict |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut misses = 0;
     for (label, model, n, baud) in [
         ("Protocol 1.0, 1 Mbit/s", "AX-12A", 18u8, 1_000_000u32),
@@ -429,10 +441,12 @@ fn main() {
         // The bar is on the software's share, as two estimates: the pty floor subtracted, and
         // the host's own time measured inside the process. Both must meet it; the raw ratio,
         // which includes the pty's hand-overs a UART does not have, is reported beside them.
-        let ok = less_floor <= 1.25 && own <= 1.25 && c.timeouts == 0;
+        // A try that times out (its answer later than the bridge's 3 ms margin; on a pty, a
+        // thread not run in time) is repeated and counted; a read given up fails the verdict.
+        let ok = less_floor <= 1.25 && own <= 1.25 && c.gave_up == 0;
         misses += !ok as u32;
         println!(
-            "| {label} | {n} x {model}: sync write + {} ({} transactions) | {:.2} ms | {:.2} ms | {:.2} ms | {raw:.2} | {:.2} ms | {less_floor:.2} | {:.3} ms | {own:.3} | ≤ 1.25 (software) | {}{} |",
+            "| {label} | {n} x {model}: sync write + {} ({} transactions) | {:.2} ms | {:.2} ms | {:.2} ms | {raw:.2} | {:.2} ms | {less_floor:.2} | {:.3} ms | {own:.3} | {} of {} | {} | ≤ 1.25 (software), none given up | {}{} |",
             if model.starts_with("AX") { "a read per servo" } else { "fast sync read" },
             sched.len(),
             wire * 1e3,
@@ -440,6 +454,9 @@ fn main() {
             c.p99 * 1e3,
             floor * 1e3,
             c.software_p50 * 1e3,
+            c.retried,
+            c.tries,
+            c.gave_up,
             if ok { "pass" } else { "FAIL" },
             if raw > 1.25 { "; the raw ratio, pty included, misses" } else { "" },
         );
