@@ -90,6 +90,36 @@ fn malformed_input_is_an_error() {
     );
 }
 
+#[test]
+fn a_ragged_table_is_an_encode_error_not_an_abort() {
+    // Sized by its first row, this table claims 2^14 rows of 2^20 doubles (128 GiB): the
+    // encoder must report the short rows, not try to allocate for the claim.
+    let rows = 1 << 14;
+    let mut t = JointTrajectoryT {
+        num_joints: 1 << 20,
+        num_rows: rows,
+        time_from_start: vec![0.0; rows as usize],
+        positions: vec![Vec::new(); rows as usize],
+        velocities: vec![Vec::new(); rows as usize],
+        ..Default::default()
+    };
+    t.positions[0] = vec![0.0; 1 << 20];
+    assert!(t.encoded_size() > 1 << 37);
+    let e = t.encode().unwrap_err();
+    assert!(e.to_string().contains("num_joints"), "{e}");
+    // Rectangular, it is sized exactly.
+    let t = JointTrajectoryT {
+        num_joints: 3,
+        joint_names: vec!["a".into(), "b".into(), "c".into()],
+        num_rows: 2,
+        time_from_start: vec![0.0, 0.1],
+        positions: vec![vec![0.0; 3]; 2],
+        velocities: vec![vec![0.0; 3]; 2],
+        ..Default::default()
+    };
+    assert_eq!(t.encode().unwrap().len(), t.encoded_size());
+}
+
 proptest::proptest! {
     #[test]
     fn decoding_garbage_never_panics(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..200)) {

@@ -335,7 +335,8 @@ pub trait Message: Sized {
     /// The fully qualified LCM type name, e.g. `stride.node_status_t`.
     const TYPE_NAME: &'static str;
 
-    /// Size of the body in bytes (the encoded size without the fingerprint).
+    /// Size of the body in bytes (the encoded size without the fingerprint) of a message that
+    /// encodes; a table whose rows differ in length, which does not, is sized by its first.
     fn body_size(&self) -> usize;
     /// Appends the body (no fingerprint).
     fn encode_body(&self, enc: &mut Encoder<'_>) -> Result<(), EncodeError>;
@@ -355,7 +356,9 @@ pub trait Message: Sized {
 
     /// Appends fingerprint and body to `buf`.
     fn encode_into(&self, buf: &mut Vec<u8>) -> Result<(), EncodeError> {
-        buf.reserve(self.encoded_size());
+        // The size is a hint: a message that does not encode may claim more than there is
+        // memory for, and must get its error, not an abort.
+        let _ = buf.try_reserve(self.encoded_size());
         let mut enc = Encoder::new(buf);
         enc.put_u64(Self::FINGERPRINT);
         self.encode_body(&mut enc)
@@ -363,7 +366,7 @@ pub trait Message: Sized {
 
     /// Encodes fingerprint and body into a new vector.
     fn encode(&self) -> Result<Vec<u8>, EncodeError> {
-        let mut buf = Vec::with_capacity(self.encoded_size());
+        let mut buf = Vec::new();
         self.encode_into(&mut buf)?;
         Ok(buf)
     }

@@ -225,6 +225,18 @@ impl Ctx<'_> {
             }
         }
         let x = format!("x{depth}");
+        // A table of fixed-size numbers (rows of a variable length) is sized from its first
+        // row, as lcm-gen's C sizes it from the declared lengths: a message encodes only when
+        // every row has the declared length, and a walk over a thousand rows would cost as
+        // much as copying them.
+        if let TypeRef::Primitive(p) = ty {
+            if p.fixed_size().is_some() && dims.len() == 2 {
+                return format!(
+                    "{expr}.len().saturating_mul({expr}.first().map_or(0, |{x}| {}))",
+                    self.size_expr(&x, true, ty, &dims[1..], depth + 1)
+                );
+            }
+        }
         format!(
             "{expr}.iter().map(|{x}| {}).sum::<usize>()",
             self.size_expr(&x, true, ty, &dims[1..], depth + 1)
