@@ -141,7 +141,7 @@ pub(crate) struct Axis {
     pub heartbeat_lost: bool,
     /// Brought up and enabled (a boot-up message then means the drive reset).
     pub up: bool,
-    /// The previous TPDO's position and time (for the velocity).
+    /// The previous TPDO's position and the SYNC it answered (for the velocity).
     prev: Option<(Instant, f64)>,
 }
 
@@ -157,6 +157,8 @@ pub(crate) struct Track {
     pub motion: Motion,
     pub drive_heartbeat: Duration,
     pub sync_period: Duration,
+    /// When the last SYNC went out: the states read before the next one answer it.
+    pub last_sync: Option<Instant>,
 }
 
 /// The set-point RPDO: RPDO3 carrying object 0x2001 (a PVT row per frame), 0x2002 (two PT
@@ -311,17 +313,29 @@ impl Axis {
         self.plan.clear()
     }
 
-    fn on_state(&mut self, statusword: u16, counts: i32, now: Instant, period: Duration) {
+    /// A state sampled at the SYNC sent at `sampled` (read at `now`).
+    fn on_state(
+        &mut self,
+        statusword: u16,
+        counts: i32,
+        sampled: Instant,
+        now: Instant,
+        period: Duration,
+    ) {
         let position = self.units.rad(counts as f64);
         self.state.statusword = statusword;
         if let Some((t, p)) = self.prev {
-            // Successive TPDOs answer successive SYNCs: their spacing is a whole number of
-            // periods, whatever the delivery's jitter.
-            let dt = now.saturating_duration_since(t).as_secs_f64();
-            let periods = (dt / period.as_secs_f64()).round().max(1.0);
-            self.state.velocity = (position - p) / (periods * period.as_secs_f64());
+            // The drive samples its position at the SYNC: the time between two states is
+            // the time between the SYNCs they answer, however late they were read (a master
+            // descheduled for 100 ms after a SYNC reads its answer 100 ms late, and must not
+            // take it for a tenth of the speed). Two states read after one SYNC: the first
+            // answered the SYNC before, a period earlier.
+            let dt = sampled.saturating_duration_since(t).as_secs_f64();
+            let period = period.as_secs_f64();
+            let dt = if dt < period / 2.0 { period } else { dt };
+            self.state.velocity = (position - p) / dt;
         }
-        self.prev = Some((now, position));
+        self.prev = Some((sampled, position));
         self.state.position = position;
         self.state.updated = Some(now);
     }
@@ -340,8 +354,9 @@ impl Track {
             Function::Tpdo(1) => {
                 if let Some(v) = state_tpdo().unpack(f.data()) {
                     let period = self.sync_period;
+                    let sampled = self.last_sync.unwrap_or(now);
                     let ax = &mut self.axes[a];
-                    ax.on_state(v[0] as u16, v[1] as u32 as i32, now, period);
+                    ax.on_state(v[0] as u16, v[1] as u32 as i32, sampled, now, period);
                     if ax.playing {
                         let before = ax.queue.pending();
                         ax.queue.on_read_pointer(v[2] as u16);
@@ -554,6 +569,7 @@ impl<B: CanBus> Master<B> {
                 motion: cfg.motion,
                 drive_heartbeat: cfg.heartbeat,
                 sync_period: cfg.sync_period,
+                last_sync: None,
             },
             cfg,
             epoch: now,

@@ -343,25 +343,33 @@ impl<B: CanBus> Master<B> {
     /// The SYNC when due, the heartbeat, and what arrived.
     pub(crate) fn pump_states(&mut self, now: Instant) -> Result<(), MasterError> {
         let _ = self.track.heartbeat.poll(&mut self.bus, now);
+        // What arrived first: the states in it answer the SYNC already sent.
+        self.take_in(now)?;
         if now >= self.next_sync {
             self.next_sync = (self.next_sync + self.cfg.sync_period).max(now);
             match self
                 .bus
                 .send(&sync::encode(None), now + self.cfg.sdo_timeout)
             {
-                Ok(()) | Err(BusError::TxQueueFull) => {}
+                Ok(()) => self.track.last_sync = Some(now),
+                Err(BusError::TxQueueFull) => {}
                 Err(e) => return Err(e.into()),
             }
-        }
-        loop {
-            match self.bus.try_recv() {
-                Ok(Some(f)) => self.track.on_frame(&f, now, &mut self.bus),
-                Ok(None) => break,
-                Err(e) => return Err(e.into()),
-            }
+            self.take_in(now)?;
         }
         self.track.watch_heartbeats(now);
         Ok(())
+    }
+
+    /// Every frame that has arrived.
+    fn take_in(&mut self, now: Instant) -> Result<(), MasterError> {
+        loop {
+            match self.bus.try_recv() {
+                Ok(Some(f)) => self.track.on_frame(&f, now, &mut self.bus),
+                Ok(None) => return Ok(()),
+                Err(e) => return Err(e.into()),
+            }
+        }
     }
 
     /// A motion whose last row has played is over: the axis is at rest, its table empty.

@@ -792,3 +792,51 @@ fn times_past_any_queue_are_refused_not_overflowed() {
     assert_eq!(r.m.status().counters.refused, 2);
     r.finish();
 }
+
+#[test]
+fn a_state_read_late_keeps_its_speed() {
+    // The bridge's velocity was taken from when the states were read: a master descheduled
+    // for 100 ms right after a SYNC read that SYNC's answer 100 ms late and reported a
+    // tenth of the speed (a CI run saw 0.037 rad/s for a knee moving at 0.36). The drive
+    // samples at the SYNC, so the speed is the change over the time between SYNCs.
+    // (The drives' watchdog and the rows' lookahead are longer than the stall.)
+    let mut r = Rig::with(
+        1,
+        MasterConfig {
+            drive_watchdog: Duration::from_millis(500),
+            lookahead: Duration::from_millis(300),
+            ..Default::default()
+        },
+    );
+    let v = 0.5;
+    let ramp = 0.2;
+    let rows_: Vec<(f64, f64, f64)> = (0..=200)
+        .map(|i| {
+            let t = i as f64 * 0.01;
+            if t < ramp {
+                (t, v * t * t / (2.0 * ramp), v * t / ramp)
+            } else {
+                (t, v * ramp / 2.0 + v * (t - ramp), v)
+            }
+        })
+        .collect();
+    r.m.load(&rows("j1", &rows_), Instant::now()).unwrap();
+    r.run(Duration::from_millis(600));
+    let mut seen = Vec::new();
+    for _ in 0..5 {
+        // A SYNC goes out (30 ms after the last, so that the drive's own reaction time is
+        // small beside it), then the master sleeps past ten periods before it reads.
+        std::thread::sleep(Duration::from_millis(30));
+        r.m.pump(Instant::now()).unwrap();
+        std::thread::sleep(Duration::from_millis(100));
+        r.m.pump(Instant::now()).unwrap();
+        seen.push(r.m.states()[0].1.velocity);
+    }
+    assert!(
+        seen.iter().all(|s| (s - v).abs() < 0.25 * v),
+        "cruising at {v} rad/s, read late: {seen:?}"
+    );
+    let ev = r.m.take_events();
+    assert!(!ev.iter().any(Event::is_fault), "{ev:?}");
+    r.finish();
+}

@@ -260,6 +260,8 @@ impl FakeElmo {
         }
         if id == 0x080 {
             if sync::decode(f).is_ok() {
+                // A drive samples its motor at the SYNC, not at its last control tick.
+                self.advance(now);
                 self.on_sync();
             }
             return;
