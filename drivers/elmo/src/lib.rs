@@ -25,7 +25,6 @@
 
 mod bring_up;
 mod config;
-pub mod curve;
 mod error;
 mod master;
 pub mod plan;
@@ -41,3 +40,5 @@ pub use stream::Accepted;
 pub use trajectory::{Start, Trajectory};
 
 pub use stride_canbus::CanBus;
+/// The motion between rows and its check, shared with every other sender of trajectories.
+pub use stride_limits::curve;

@@ -60,17 +60,7 @@ pub enum Interp {
 pub const PVT_MAX_ROW_US: i64 = 255_000;
 
 /// A joint's limits as the checks use them.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Bounds {
-    /// Position range, rad.
-    pub min: f64,
-    /// Upper end.
-    pub max: f64,
-    /// Speed, rad/s.
-    pub v: f64,
-    /// Acceleration, rad/s².
-    pub a: f64,
-}
+pub use stride_limits::curve::Bounds;
 
 /// What a check found beyond a limit.
 #[derive(Debug, Clone, PartialEq)]
@@ -79,13 +69,6 @@ pub struct Violation {
     pub tag: Tag,
     /// What and by how much, in words.
     pub what: String,
-}
-
-/// A small margin over a limit, so that a motion exactly at it (a stop at the acceleration
-/// limit) is not refused for rounding.
-fn over(x: f64, limit: f64) -> bool {
-    // NaN is over every limit.
-    x.is_nan() || x > limit * (1.0 + 1e-9) + 1e-12
 }
 
 impl Interp {
@@ -120,31 +103,6 @@ impl Interp {
         for i in from..k.len().saturating_sub(1) {
             let c = self.curve(k, i);
             let e = c.extremes();
-            let at = |dt: f64| secs(k[i].t) + dt;
-            let tag = k[i + 1].tag;
-            if !(e.p_min.0 >= b.min - 1e-12 && e.p_max.0 <= b.max + 1e-12) {
-                let (p, dt) = if e.p_min.0 < b.min { e.p_min } else { e.p_max };
-                return Err(Violation {
-                    tag,
-                    what: format!(
-                        "position {p:.4} rad at {:.3} s outside [{}, {}]",
-                        at(dt),
-                        b.min,
-                        b.max
-                    ),
-                });
-            }
-            if over(e.v.0, b.v) {
-                return Err(Violation {
-                    tag,
-                    what: format!(
-                        "velocity {:.3} rad/s at {:.3} s beyond {}",
-                        e.v.0,
-                        at(e.v.1),
-                        b.v
-                    ),
-                });
-            }
             // A line has no acceleration inside; between two lines it is the change of
             // speed over a period (the drive's position loop smooths the corner).
             let acc = match self {
@@ -163,15 +121,10 @@ impl Interp {
                 }
                 _ => e.a,
             };
-            if over(acc.0, b.a) {
+            if let Some(what) = stride_limits::curve::beyond(&e, acc, b, secs(k[i].t)) {
                 return Err(Violation {
-                    tag,
-                    what: format!(
-                        "acceleration {:.1} rad/s² at {:.3} s beyond {}",
-                        acc.0,
-                        at(acc.1),
-                        b.a
-                    ),
+                    tag: k[i + 1].tag,
+                    what,
                 });
             }
         }

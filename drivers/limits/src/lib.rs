@@ -4,6 +4,8 @@
 //! limits. A command that fails anywhere is refused whole ([`Reject`] says which joint and
 //! which limit, by how much); nothing is clipped.
 
+pub mod curve;
+
 /// Why a command was refused (nothing of it is applied).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum Reject {

@@ -1,6 +1,8 @@
-//! The motion between two table rows as a drive plays it, and its exact extremes: a cubic
-//! Hermite segment (PVT rows, and PT points with the slopes the drive gives them), or a line
-//! (interpolated position). Pure arithmetic.
+//! The motion between two rows of a joint trajectory as a drive plays it, and its exact
+//! extremes: a cubic Hermite segment (PVT rows, and PT points with the slopes the drive gives
+//! them), or a line (interpolated position); and the check of those extremes against a
+//! joint's limits ([`beyond`]) that the Elmo bridge makes of what it is sent and the gait of
+//! what it sends. Pure arithmetic.
 
 /// A cubic `p(t) = c0 + c1 t + c2 t² + c3 t³` on `0..=h`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -114,6 +116,62 @@ impl Cubic {
         let a = if a1 > a0 { (a1, h) } else { (a0, 0.0) };
         Extremes { p_min, p_max, v, a }
     }
+}
+
+/// A joint's limits on a motion.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bounds {
+    /// Position range, rad.
+    pub min: f64,
+    /// Upper end.
+    pub max: f64,
+    /// Speed, rad/s.
+    pub v: f64,
+    /// Acceleration, rad/s².
+    pub a: f64,
+}
+
+/// True past a limit, with a small margin so that a motion exactly at it (a stop at the
+/// acceleration limit) is not refused for rounding. NaN is past every limit.
+pub fn over(x: f64, limit: f64) -> bool {
+    x.is_nan() || x > limit * (1.0 + 1e-9) + 1e-12
+}
+
+/// What of a segment's extremes `e` lies beyond `b`, in words: its position range, its speed,
+/// then the acceleration `acc` (the segment's own, `e.a`, or what the caller's interpolation
+/// makes of it), each with its time, `t0` being the segment's start (s). None when it is all
+/// within.
+pub fn beyond(e: &Extremes, acc: (f64, f64), b: &Bounds, t0: f64) -> Option<String> {
+    if !(e.p_min.0 >= b.min - 1e-12 && e.p_max.0 <= b.max + 1e-12) {
+        let (p, dt) = if !(e.p_min.0 >= b.min - 1e-12) {
+            e.p_min
+        } else {
+            e.p_max
+        };
+        return Some(format!(
+            "position {p:.4} rad at {:.3} s outside [{}, {}]",
+            t0 + dt,
+            b.min,
+            b.max
+        ));
+    }
+    if over(e.v.0, b.v) {
+        return Some(format!(
+            "velocity {:.3} rad/s at {:.3} s beyond {}",
+            e.v.0,
+            t0 + e.v.1,
+            b.v
+        ));
+    }
+    if over(acc.0, b.a) {
+        return Some(format!(
+            "acceleration {:.1} rad/s² at {:.3} s beyond {}",
+            acc.0,
+            t0 + acc.1,
+            b.a
+        ));
+    }
+    None
 }
 
 #[cfg(test)]

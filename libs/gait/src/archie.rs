@@ -1,0 +1,251 @@
+//! Archie's joint trajectories from a pattern: at every row the pelvis (its centre the cart
+//! of the cart-table model, at z_c above the ground, upright, headed between the feet) and
+//! both soles are solved by the legs' inverse kinematics; the rows' velocities are the
+//! positions' central differences. Every row and the motion between rows (the cubic a PVT
+//! drive plays) is checked against the joints' position, velocity and acceleration limits
+//! with the bridges' own check ([`stride_limits::curve::beyond`]); a pattern that breaks one
+//! anywhere is refused whole.
+//!
+//! The default COM height comes from the legs ([`default_z_c`]): the highest the pelvis
+//! centre stands over the double support of the longest step with the knees bent at least a
+//! little, less a margin. The thesis's 0.72 m is above anything the legs reach (the pelvis
+//! centre stands at most 0.679 m high with straight legs).
+
+use serde::Deserialize;
+use stride_kinematics::archie::{self, ArchieConfig, Leg, Q};
+use stride_kinematics::math::{Pose, V3};
+use stride_limits::curve::{beyond, Bounds, Cubic};
+
+use crate::pattern::Pattern;
+use crate::support::P2;
+use crate::swing::Place;
+use crate::GaitError;
+
+/// How the COM height is chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeightConfig {
+    /// The longest step the height must serve (the feet this far apart along x), m.
+    pub step_length: f64,
+    /// The feet's spacing across, m.
+    pub stance_width: f64,
+    /// The least knee bend over the step, rad (away from the straight knee's singularity).
+    pub knee_min: f64,
+    /// Taken off the highest height, m.
+    pub margin: f64,
+}
+
+impl Default for HeightConfig {
+    fn default() -> HeightConfig {
+        HeightConfig {
+            step_length: 0.25,
+            stance_width: 0.2,
+            knee_min: 0.2,
+            margin: 0.02,
+        }
+    }
+}
+
+/// The COM height from the legs: [`archie::max_pelvis_height`] over the configured step,
+/// less the margin.
+pub fn default_z_c(robot: &ArchieConfig, h: &HeightConfig) -> f64 {
+    archie::max_pelvis_height(&robot.links, h.step_length, h.stance_width, h.knee_min) - h.margin
+}
+
+/// One leg's rows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LegRows {
+    /// The joints' names, e.g. "left_knee".
+    pub names: [String; 6],
+    /// Positions, rad, a row each.
+    pub positions: Vec<Q>,
+    /// Velocities, rad/s.
+    pub velocities: Vec<Q>,
+}
+
+/// Both legs' joint trajectories, rows every period from the pattern's start.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointPlan {
+    /// Seconds from the pattern's start to each row.
+    pub times: Vec<f64>,
+    /// The left leg.
+    pub left: LegRows,
+    /// The right leg.
+    pub right: LegRows,
+}
+
+/// The pelvis's pose at a pattern's sample: the COM's place at `z_c` above the ground,
+/// upright, headed between the feet.
+pub fn pelvis(com: P2, z: f64, feet: &[Place; 2]) -> Pose {
+    let (s, c) = (feet[0][3].sin() + feet[1][3].sin(), feet[0][3].cos() + feet[1][3].cos());
+    Pose::yawed([com[0], com[1], z], s.atan2(c))
+}
+
+/// Archie's joints over patterns.
+#[derive(Debug, Clone)]
+pub struct ArchieGait {
+    /// The robot.
+    pub robot: ArchieConfig,
+    /// The COM's height above the ground, m.
+    pub z_c: f64,
+    /// Between rows, s.
+    pub row_period: f64,
+}
+
+impl ArchieGait {
+    /// The joints of both legs for a pelvis pose and two soles (their centres' places).
+    pub fn solve(&self, pelvis: &Pose, feet: &[Place; 2], near: &[Q; 2]) -> Result<[Q; 2], GaitError> {
+        let mut out = [[0.0; 6]; 2];
+        for (k, leg) in [Leg::Left, Leg::Right].into_iter().enumerate() {
+            let f = feet[k];
+            let sole = pelvis
+                .inv()
+                .then(&self.robot.sole_frame([f[0], f[1], f[2]], f[3]));
+            let q = archie::solve(&self.robot.links, leg, &sole, &near[k])
+                .map_err(|e| GaitError::Plan(e.to_string()))?;
+            self.robot
+                .check_q(leg, &q)
+                .map_err(|e| GaitError::Plan(e.to_string()))?;
+            out[k] = q;
+        }
+        Ok(out)
+    }
+
+    /// The pelvis at a pattern's sample: the COM at z_c above the ground under it (the feet's
+    /// ground heights, the support's in single support).
+    pub fn pelvis_at(&self, pat: &Pattern, k: usize) -> Pose {
+        let s = &pat.samples[k];
+        let ground = pat.timeline.ground(s.t);
+        let feet = [s.feet[0][0], s.feet[1][0]];
+        pelvis(s.com.com()[0], self.z_c + ground, &feet)
+    }
+
+    /// The joint trajectories of a pattern, checked (see the module).
+    pub fn joints(&self, pat: &Pattern) -> Result<JointPlan, GaitError> {
+        let stride = ((self.row_period / pat.dt).round() as usize).max(1);
+        let ks: Vec<usize> = (0..pat.samples.len()).step_by(stride).collect();
+        let mut near = [[0.0, 0.0, 0.0, 0.3, -0.15, 0.0]; 2];
+        let mut pos: Vec<[Q; 2]> = Vec::with_capacity(ks.len());
+        let mut times = Vec::with_capacity(ks.len());
+        for &k in &ks {
+            let s = &pat.samples[k];
+            let feet = [s.feet[0][0], s.feet[1][0]];
+            let q = self
+                .solve(&self.pelvis_at(pat, k), &feet, &near)
+                .map_err(|e| GaitError::Plan(format!("at {:.3} s: {e}", s.t - pat.timeline.start)))?;
+            near = q;
+            pos.push(q);
+            times.push(s.t - pat.timeline.start);
+        }
+        // Velocities: central differences, at rest at both ends of a pattern that starts and
+        // ends at rest (its first and last samples stand still).
+        let n = pos.len();
+        let vel: Vec<[Q; 2]> = (0..n)
+            .map(|i| {
+                if i == 0 || i + 1 == n {
+                    [[0.0; 6]; 2]
+                } else {
+                    let h = times[i + 1] - times[i - 1];
+                    std::array::from_fn(|l| std::array::from_fn(|j| (pos[i + 1][l][j] - pos[i - 1][l][j]) / h))
+                }
+            })
+            .collect();
+        let plan = JointPlan {
+            times,
+            left: LegRows {
+                names: self.robot.names(Leg::Left),
+                positions: pos.iter().map(|q| q[0]).collect(),
+                velocities: vel.iter().map(|v| v[0]).collect(),
+            },
+            right: LegRows {
+                names: self.robot.names(Leg::Right),
+                positions: pos.iter().map(|q| q[1]).collect(),
+                velocities: vel.iter().map(|v| v[1]).collect(),
+            },
+        };
+        self.check(&plan)?;
+        Ok(plan)
+    }
+
+    /// Checks every row and the cubic between rows of both legs against the joints' limits.
+    pub fn check(&self, plan: &JointPlan) -> Result<(), GaitError> {
+        for rows in [&plan.left, &plan.right] {
+            for (j, spec) in self.robot.joint.iter().enumerate() {
+                let b = Bounds {
+                    min: spec.min,
+                    max: spec.max,
+                    v: spec.max_velocity,
+                    a: spec.max_acceleration,
+                };
+                for i in 0..plan.times.len().saturating_sub(1) {
+                    let (t0, t1) = (plan.times[i], plan.times[i + 1]);
+                    let c = Cubic::hermite(
+                        rows.positions[i][j],
+                        rows.velocities[i][j],
+                        rows.positions[i + 1][j],
+                        rows.velocities[i + 1][j],
+                        t1 - t0,
+                    );
+                    let e = c.extremes();
+                    if let Some(what) = beyond(&e, e.a, &b, t0) {
+                        return Err(GaitError::Limit(format!(
+                            "row {}, joint {}: {what}",
+                            i + 1,
+                            rows.names[j]
+                        )));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The multibody ZMP of a joint plan (pelvis poses from the pattern's samples at the
+    /// rows): the point masses of the robot file placed by forward kinematics (the pelvis's
+    /// at its centre, a thigh's and a shank's at their middles, a foot's at the ankle roll
+    /// axis), their accelerations by second differences, and p = Σ m (x (z̈ + g) − z ẍ) /
+    /// Σ m (z̈ + g) (the links' own rotational inertia left out). One point a row, the first
+    /// and last rows' at rest.
+    pub fn multibody_zmp(&self, pat: &Pattern, plan: &JointPlan, g: f64) -> Vec<P2> {
+        let stride = ((self.row_period / pat.dt).round() as usize).max(1);
+        let m = &self.robot.mass;
+        let masses: Vec<Vec<(f64, V3)>> = (0..plan.times.len())
+            .map(|i| {
+                let pelvis = self.pelvis_at(pat, i * stride);
+                let mut pts = vec![(m.pelvis, pelvis.p)];
+                for (leg, rows) in [(Leg::Left, &plan.left), (Leg::Right, &plan.right)] {
+                    let (_, p) = archie::fk_points(&self.robot.links, leg, &rows.positions[i]);
+                    let w = |a: &V3| pelvis.apply(a);
+                    let mid = |a: &V3, b: &V3| w(&[(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0, (a[2] + b[2]) / 2.0]);
+                    pts.push((m.thigh, mid(&p[0], &p[1])));
+                    pts.push((m.shank, mid(&p[1], &p[2])));
+                    pts.push((m.foot, w(&p[3])));
+                }
+                pts
+            })
+            .collect();
+        let n = masses.len();
+        (0..n)
+            .map(|i| {
+                let (mut num_x, mut num_y, mut den) = (0.0, 0.0, 0.0);
+                for (k, &(mass, p)) in masses[i].iter().enumerate() {
+                    let acc = if i == 0 || i + 1 == n {
+                        [0.0; 3]
+                    } else {
+                        let h1 = plan.times[i] - plan.times[i - 1];
+                        let h2 = plan.times[i + 1] - plan.times[i];
+                        let (a, b) = (masses[i - 1][k].1, masses[i + 1][k].1);
+                        std::array::from_fn(|d| {
+                            2.0 * ((b[d] - p[d]) / h2 - (p[d] - a[d]) / h1) / (h1 + h2)
+                        })
+                    };
+                    let w = mass * (acc[2] + g);
+                    num_x += p[0] * w - mass * p[2] * acc[0];
+                    num_y += p[1] * w - mass * p[2] * acc[1];
+                    den += w;
+                }
+                [num_x / den, num_y / den]
+            })
+            .collect()
+    }
+}

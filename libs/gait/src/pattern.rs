@@ -1,0 +1,688 @@
+//! COM and ZMP patterns from footsteps, one interface for both generators:
+//!
+//! - [`Generator::Preview`], the default: ZMP preview control ([`crate::preview`]) tracking the
+//!   timeline's ZMP reference, double supports included;
+//! - [`Generator::FootPlacement`]: Archie's walk primitives with the modified foot placement
+//!   ([`crate::lipm`]): single supports of T_sup each, the foot placed where eq 24 puts it
+//!   (within `max_displacement` of the plan's footstep, else the plan is refused); after the
+//!   last step the preview controller takes the COM over (position, velocity and
+//!   acceleration continuous) and brings it to rest between the feet.
+//!
+//! Every sample carries the cart-table ZMP p = x − (z_c / g) ẍ and its margin in the support
+//! polygon. [`plan`] stretches the time of a step whose margin falls below the bar, within
+//! [T_min, T_max], until it passes, else refuses the plan. [`Pattern::state_at`] gives the
+//! state a new pattern starts from, so that a plan replaced mid-walk continues the COM and
+//! the swing foot without a jump.
+
+use serde::Deserialize;
+
+use crate::lipm::{LipmConfig, Pendulum, State};
+use crate::preview::{Cart, Preview, PreviewConfig};
+use crate::support::{margin, polygon, Pose2, Sole, P2};
+use crate::swing::{Place, SwingConfig, SwingPath};
+use crate::timeline::{xy, Footstep, Phase, Side, Step, Timeline, TimingConfig};
+use crate::GaitError;
+
+/// Which COM generator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    /// ZMP preview control (the default).
+    Preview,
+    /// Walk primitives with the modified foot placement (Archie's chapter 2.1).
+    FootPlacement,
+}
+
+/// The foot placement generator's parameters (the pendulum's height and gravity are the
+/// pattern's).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlacementConfig {
+    /// The support period T_sup, s.
+    pub t_sup: f64,
+    /// Weight of the terminal position error (eq 22).
+    pub a: f64,
+    /// Weight of the terminal velocity error (eq 22).
+    pub b: f64,
+    /// How far the modified placement may move a planned footstep, m.
+    pub max_displacement: f64,
+    /// Eq 7's misprint, as printed.
+    #[serde(default)]
+    pub faithful_eq_7: bool,
+}
+
+impl Default for PlacementConfig {
+    /// The thesis's T_sup = 1 s; a = 10, b = 1 as in Kajita's book (the thesis gives none).
+    fn default() -> PlacementConfig {
+        PlacementConfig {
+            t_sup: 1.0,
+            a: 10.0,
+            b: 1.0,
+            max_displacement: 0.05,
+            faithful_eq_7: false,
+        }
+    }
+}
+
+/// A pattern's parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PatternConfig {
+    /// The COM generator.
+    pub generator: Kind,
+    /// The COM's height, m.
+    pub z_c: f64,
+    /// Gravity, m/s².
+    pub g: f64,
+    /// Preview control (and the sampling period of every pattern).
+    pub preview: PreviewConfig,
+    /// The foot placement generator.
+    pub placement: PlacementConfig,
+    /// Step timing.
+    pub timing: TimingConfig,
+    /// The swing's shape.
+    pub swing: SwingConfig,
+    /// The sole the ZMP must stay on.
+    pub sole: Sole,
+    /// The smallest margin of the ZMP in the support polygon, m.
+    pub min_margin: f64,
+}
+
+/// The COM's state on both axes, with the preview controller's error sums.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ComState {
+    /// x.
+    pub x: Cart,
+    /// y.
+    pub y: Cart,
+}
+
+impl ComState {
+    /// At rest at `p`.
+    pub fn at_rest(p: P2) -> ComState {
+        ComState {
+            x: Cart {
+                x: [p[0], 0.0, 0.0],
+                err_sum: 0.0,
+            },
+            y: Cart {
+                x: [p[1], 0.0, 0.0],
+                err_sum: 0.0,
+            },
+        }
+    }
+
+    /// Position, velocity, acceleration (x and y each).
+    pub fn com(&self) -> [P2; 3] {
+        [
+            [self.x.x[0], self.y.x[0]],
+            [self.x.x[1], self.y.x[1]],
+            [self.x.x[2], self.y.x[2]],
+        ]
+    }
+}
+
+/// One sample of a pattern.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Time, s.
+    pub t: f64,
+    /// The COM's state.
+    pub com: ComState,
+    /// The ZMP reference.
+    pub zmp_ref: P2,
+    /// The cart-table ZMP of the COM's state.
+    pub zmp: P2,
+    /// The feet: place, velocity and acceleration, left and right.
+    pub feet: [[Place; 3]; 2],
+    /// The phase.
+    pub phase: Phase,
+    /// The ZMP's margin in the support polygon, m.
+    pub margin: f64,
+}
+
+/// A COM, ZMP and swing pattern, sampled every period.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pattern {
+    /// Sampling period, s.
+    pub dt: f64,
+    /// The steps in time.
+    pub timeline: Timeline,
+    /// The samples, the first at the timeline's start.
+    pub samples: Vec<Sample>,
+    /// With the foot placement generator: the planned footsteps and where each was placed.
+    pub placed: Vec<(Footstep, P2)>,
+}
+
+/// Where a walk starts from: the COM's state, the ZMP reference, the feet (a foot in the
+/// air with its velocity and acceleration) and the step under way.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Start {
+    /// When, s.
+    pub t: f64,
+    /// The COM.
+    pub com: ComState,
+    /// The ZMP reference.
+    pub zmp_ref: P2,
+    /// The feet, left and right: place, velocity, acceleration.
+    pub feet: [[Place; 3]; 2],
+    /// The step under way, in its double support or its swing.
+    pub under_way: Option<UnderWay>,
+    /// The COM's jerk (x, y), when it is in motion on a pattern: a new pattern goes on with it
+    /// (bumpless); None: the controller's own first jerk.
+    pub jerk: Option<[f64; 2]>,
+}
+
+/// A step under way at a pattern's start: it keeps its times (a new plan may retarget it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UnderWay {
+    /// The step.
+    pub footstep: Footstep,
+    /// When its double support began, s.
+    pub start: f64,
+    /// When its foot lifts (lifted already when before the start's time), s.
+    pub lift: f64,
+    /// When it lands, s.
+    pub land: f64,
+    /// Where its double support moves the ZMP reference from.
+    pub zmp_from: P2,
+}
+
+impl Start {
+    /// Standing still: the COM at rest over the midpoint of the feet.
+    pub fn standing(t: f64, left: Place, right: Place) -> Start {
+        let m = [(left[0] + right[0]) / 2.0, (left[1] + right[1]) / 2.0];
+        Start {
+            t,
+            com: ComState::at_rest(m),
+            zmp_ref: m,
+            feet: [[left, [0.0; 4], [0.0; 4]], [right, [0.0; 4], [0.0; 4]]],
+            under_way: None,
+            jerk: Some([0.0, 0.0]),
+        }
+    }
+}
+
+impl Pattern {
+    /// The sample at or just before `t`.
+    pub fn index_at(&self, t: f64) -> usize {
+        let k = ((t - self.timeline.start) / self.dt).floor().max(0.0) as usize;
+        k.min(self.samples.len() - 1)
+    }
+
+    /// The state to start a new pattern from at sample `k`: the COM as it is there, the feet,
+    /// and the step under way (which a new plan may retarget, its times kept).
+    pub fn state_at(&self, k: usize) -> Start {
+        let s = &self.samples[k];
+        let tl = &self.timeline;
+        let step = match s.phase {
+            Phase::Single { step, .. } | Phase::Double { step: Some(step) } => Some(step),
+            Phase::Double { step: None } => None,
+        };
+        let under_way = step.map(|i| {
+            let st = &tl.steps[i];
+            UnderWay {
+                footstep: st.footstep,
+                start: st.start,
+                lift: st.lift,
+                land: st.land,
+                zmp_from: if i == 0 {
+                    tl.zmp_start
+                } else {
+                    xy(&tl.steps[i - 1].support)
+                },
+            }
+        });
+        // The jerk the pattern applies from this sample on.
+        let jerk = self.samples.get(k + 1).map(|n| {
+            [
+                (n.com.x.x[2] - s.com.x.x[2]) / self.dt,
+                (n.com.y.x[2] - s.com.y.x[2]) / self.dt,
+            ]
+        });
+        Start {
+            t: s.t,
+            com: s.com,
+            zmp_ref: s.zmp_ref,
+            feet: s.feet,
+            under_way,
+            jerk,
+        }
+    }
+
+    /// The smallest ZMP margin, and when.
+    pub fn min_margin(&self) -> (f64, f64) {
+        self.samples
+            .iter()
+            .map(|s| (s.margin, s.t))
+            .fold((f64::INFINITY, 0.0), |a, b| if b.0 < a.0 { b } else { a })
+    }
+}
+
+/// The generator, built once for a COM height.
+#[derive(Debug, Clone)]
+pub struct Generator {
+    cfg: PatternConfig,
+    preview: Preview,
+    pendulum: Pendulum,
+}
+
+impl Generator {
+    /// Builds the generator (the preview gains are computed here).
+    pub fn new(cfg: PatternConfig) -> Result<Generator, GaitError> {
+        cfg.timing.check()?;
+        if !(cfg.min_margin.is_finite() && cfg.sole.length > 0.0 && cfg.sole.width > 0.0) {
+            return Err(GaitError::Parameter(format!(
+                "pattern: a sole of positive size and a finite margin: {:?}, {}",
+                cfg.sole, cfg.min_margin
+            )));
+        }
+        let preview = Preview::new(cfg.preview, cfg.z_c, cfg.g)?;
+        let pendulum = Pendulum::new(LipmConfig {
+            z_c: cfg.z_c,
+            t_sup: cfg.placement.t_sup,
+            g: cfg.g,
+            a: cfg.placement.a,
+            b: cfg.placement.b,
+            faithful: crate::lipm::Faithful {
+                eq_7: cfg.placement.faithful_eq_7,
+            },
+        })?;
+        Ok(Generator {
+            cfg,
+            preview,
+            pendulum,
+        })
+    }
+
+    /// The parameters.
+    pub fn config(&self) -> &PatternConfig {
+        &self.cfg
+    }
+
+    /// The preview controller.
+    pub fn preview(&self) -> &Preview {
+        &self.preview
+    }
+
+    /// The pendulum of the foot placement generator.
+    pub fn pendulum(&self) -> &Pendulum {
+        &self.pendulum
+    }
+
+    /// True when `steps` begins with the step under way at `start` (the plan retargets it).
+    pub fn continues(start: &Start, steps: &[Footstep]) -> bool {
+        start.under_way.is_some_and(|u| {
+            steps
+                .first()
+                .is_some_and(|f| f.number == u.footstep.number && f.side == u.footstep.side)
+        })
+    }
+
+    /// The timeline of `steps` from `start` with step durations `durations` (per step of
+    /// `steps`; 0: the rule's): a step under way keeps its times (retargeted to the plan's
+    /// step of its number, if the plan has one; a swing continues from where the foot is).
+    pub fn timeline(
+        &self,
+        start: &Start,
+        steps: &[Footstep],
+        durations: &[f64],
+    ) -> Result<Timeline, GaitError> {
+        let feet = [start.feet[0][0], start.feet[1][0]];
+        let Some(uw) = start.under_way else {
+            let com = start.com.com();
+            let at_rest = com[1].iter().chain(&com[2]).all(|v| v.abs() < 1e-6);
+            return Timeline::new(
+                start.t,
+                start.zmp_ref,
+                feet,
+                steps,
+                durations,
+                &self.cfg.timing,
+                &self.cfg.swing,
+                at_rest,
+            );
+        };
+        let (target, rest, rest_durations) = if Generator::continues(start, steps) {
+            (steps[0], &steps[1..], durations.get(1..).unwrap_or(&[]))
+        } else {
+            (uw.footstep, steps, durations)
+        };
+        let k = target.side.index();
+        let over = start.feet[k][0][2].max(target.place[2]) + target.swing_height.max(0.0);
+        let path = if start.t > uw.lift {
+            // In the air: on from where the foot is, landing when it was to.
+            let left = (uw.land - start.t).max(self.cfg.preview.period);
+            SwingPath::from_state(start.feet[k], target.place, over, left, &self.cfg.swing)?
+        } else {
+            SwingPath::new(
+                start.feet[k][0],
+                target.place,
+                over,
+                uw.land - uw.lift,
+                &self.cfg.swing,
+            )?
+        };
+        let support = feet[target.side.other().index()];
+        let first = Step {
+            footstep: target,
+            from: if start.t > uw.lift {
+                uw.footstep.place
+            } else {
+                start.feet[k][0]
+            },
+            support,
+            start: uw.start,
+            lift: uw.lift.max(uw.start),
+            land: uw.land.max(start.t + self.cfg.preview.period),
+            swing: path,
+        };
+        // A swing retargeted in the air: its path starts now.
+        let first = if start.t > uw.lift {
+            Step {
+                lift: start.t,
+                ..first
+            }
+        } else {
+            first
+        };
+        let mut after = feet;
+        after[k] = target.place;
+        let mut t = Timeline::new(
+            first.land,
+            xy(&support),
+            after,
+            rest,
+            rest_durations,
+            &self.cfg.timing,
+            &self.cfg.swing,
+            false,
+        )?;
+        t.start = start.t;
+        t.zmp_start = uw.zmp_from;
+        t.feet_start = feet;
+        t.steps.insert(0, first);
+        Ok(t)
+    }
+
+    /// The pattern of `steps` from `start`, step times as given (0: the rule's), unchecked.
+    pub fn generate(
+        &self,
+        start: &Start,
+        steps: &[Footstep],
+        durations: &[f64],
+    ) -> Result<Pattern, GaitError> {
+        match self.cfg.generator {
+            Kind::Preview => {
+                let tl = self.timeline(start, steps, durations)?;
+                Ok(self.preview_pattern(tl, start.com, start.jerk, Vec::new()))
+            }
+            Kind::FootPlacement => self.placement_pattern(start, steps),
+        }
+    }
+
+    fn sample(&self, tl: &Timeline, t: f64, com: ComState) -> Sample {
+        let zmp = [self.preview.zmp(&com.x.x), self.preview.zmp(&com.y.x)];
+        let ground: Vec<Pose2> = tl
+            .on_ground(t)
+            .iter()
+            .map(|p| Pose2 {
+                p: xy(p),
+                yaw: p[3],
+            })
+            .collect();
+        Sample {
+            t,
+            com,
+            zmp_ref: tl.zmp_ref(t),
+            zmp,
+            feet: tl.feet(t),
+            phase: tl.phase(t),
+            margin: margin(&polygon(&self.cfg.sole, &ground), zmp),
+        }
+    }
+
+    /// Preview control over the whole timeline from `com`; with `jerk`, the controller
+    /// takes the COM over bumplessly (its first jerk that one, see [`Preview::bumpless`]).
+    fn preview_pattern(
+        &self,
+        tl: Timeline,
+        com: ComState,
+        jerk: Option<[f64; 2]>,
+        placed: Vec<(Footstep, P2)>,
+    ) -> Pattern {
+        let dt = self.cfg.preview.period;
+        let ticks = ((tl.end - tl.start) / dt).ceil() as usize;
+        let n = self.preview.horizon_ticks();
+        let refs: Vec<P2> = (0..=ticks + n)
+            .map(|k| tl.zmp_ref(tl.start + k as f64 * dt))
+            .collect();
+        let rx: Vec<f64> = refs.iter().map(|p| p[0]).collect();
+        let ry: Vec<f64> = refs.iter().map(|p| p[1]).collect();
+        let mut state = com;
+        if let Some(u) = jerk {
+            self.preview.bumpless(&mut state.x, rx[0], &rx[1..=n], u[0]);
+            self.preview.bumpless(&mut state.y, ry[0], &ry[1..=n], u[1]);
+        }
+        let mut samples = Vec::with_capacity(ticks + 1);
+        for k in 0..=ticks {
+            let t = tl.start + k as f64 * dt;
+            samples.push(self.sample(&tl, t, state));
+            if k < ticks {
+                self.preview
+                    .tick(&mut state.x, rx[k], &rx[k + 1..k + 1 + n]);
+                self.preview
+                    .tick(&mut state.y, ry[k], &ry[k + 1..k + 1 + n]);
+            }
+        }
+        Pattern {
+            dt,
+            timeline: tl,
+            samples,
+            placed,
+        }
+    }
+
+    /// The foot placement generator. A walk from standing has no momentum for the walk
+    /// primitives (the thesis gives no initial state; Kajita's, at rest over the first foot,
+    /// places the first feet far from the plan), so the preview controller walks the first
+    /// step; from its touch-down, with the COM's state there, Kajita's algorithm places the
+    /// other footsteps, each a single support of T_sup; after the last the preview controller
+    /// settles the COM between the feet. Position and velocity are continuous throughout; the
+    /// acceleration jumps at each support exchange, as the pendulum's ZMP does.
+    fn placement_pattern(&self, start: &Start, steps: &[Footstep]) -> Result<Pattern, GaitError> {
+        if start.under_way.is_some() {
+            return Err(GaitError::Plan(
+                "the foot placement generator starts a plan between steps, not mid-step".into(),
+            ));
+        }
+        let full_tl = self.timeline(start, steps, &[])?;
+        let full = self.preview_pattern(full_tl, start.com, start.jerk, Vec::new());
+        if steps.len() < 2 {
+            return Ok(full);
+        }
+        let p = &self.pendulum;
+        let t_sup = self.cfg.placement.t_sup;
+        let dt = self.cfg.preview.period;
+        let first = full.timeline.steps[0].clone();
+        // The pendulum takes over when the second step lifts: the first step's foot is the
+        // support, the COM on its way over it.
+        let k1 = full.index_at(full.timeline.steps[1].lift + dt / 2.0);
+        let t1 = full.samples[k1].t;
+        let at1 = full.samples[k1].com;
+        let mut feet = full.timeline.feet_start;
+        feet[first.footstep.side.index()] = first.footstep.place;
+        // The pendulum's supports: the first step's foot, then the plan's footsteps.
+        let p0 = first.footstep.place;
+        let mut nominal: Vec<(P2, f64)> = vec![(xy(&p0), p0[3])];
+        nominal.extend(steps[1..].iter().map(|f| (xy(&f.place), f.place[3])));
+        let initial = State {
+            x: [at1.x.x[0], at1.y.x[0]],
+            v: [at1.x.x[1], at1.y.x[1]],
+        };
+        let supports = crate::lipm::walk_footsteps(p, &nominal, initial);
+        let mut placed_steps = Vec::with_capacity(steps.len() - 1);
+        let mut placed = Vec::with_capacity(steps.len() - 1);
+        for (f, s) in steps[1..].iter().zip(&supports[1..]) {
+            let d = (s.foot[0] - f.place[0]).hypot(s.foot[1] - f.place[1]);
+            if !(d <= self.cfg.placement.max_displacement) {
+                return Err(GaitError::Plan(format!(
+                    "step {}: the modified foot placement moves it {d:.3} m from the plan \
+                     (at most {} m)",
+                    f.number, self.cfg.placement.max_displacement
+                )));
+            }
+            let mut g = *f;
+            g.place[0] = s.foot[0];
+            g.place[1] = s.foot[1];
+            g.duration = t_sup;
+            placed_steps.push(g);
+            placed.push((*f, s.foot));
+        }
+        // The placed steps: single supports only (the swing takes the whole period).
+        let timing = TimingConfig {
+            double_support: 0.0,
+            ..self.cfg.timing
+        };
+        let walk_tl = Timeline::new(
+            t1,
+            xy(&p0),
+            feet,
+            &placed_steps,
+            &vec![t_sup; placed_steps.len()],
+            &timing,
+            &self.cfg.swing,
+            false,
+        )?;
+        let mut tl = full.timeline.clone();
+        tl.steps.truncate(1);
+        tl.steps.extend(walk_tl.steps.iter().cloned());
+        tl.feet_end = walk_tl.feet_end;
+        let mut samples: Vec<Sample> = full.samples[..k1].to_vec();
+        // Every placed step's support, and the last foot's, which brings the COM over it.
+        let k_walk = (t_sup * (placed_steps.len() + 1) as f64 / dt).round() as usize;
+        for k in 0..k_walk {
+            let t = t1 + k as f64 * dt;
+            let n = (((t - t1) / t_sup).floor() as usize).min(supports.len() - 1);
+            let [pos, vel, acc] = supports[n].at(p, t - t1 - n as f64 * t_sup);
+            let com = ComState {
+                x: Cart {
+                    x: [pos[0], vel[0], acc[0]],
+                    err_sum: 0.0,
+                },
+                y: Cart {
+                    x: [pos[1], vel[1], acc[1]],
+                    err_sum: 0.0,
+                },
+            };
+            samples.push(self.sample(&tl, t, com));
+        }
+        // The settle from the last support's end, by the preview controller.
+        let last = &supports[placed_steps.len()];
+        let [pos, vel, acc] = last.at(p, t_sup);
+        let com = ComState {
+            x: Cart {
+                x: [pos[0], vel[0], acc[0]],
+                err_sum: 0.0,
+            },
+            y: Cart {
+                x: [pos[1], vel[1], acc[1]],
+                err_sum: 0.0,
+            },
+        };
+        let settle_start = t1 + k_walk as f64 * dt;
+        // The pendulum stops the COM over the last foot: the settle starts from (nearly)
+        // rest, so its reference waits the lead before it moves.
+        let rest_tl = Timeline::new(
+            settle_start,
+            last.foot,
+            tl.feet_end,
+            &[],
+            &[],
+            &self.cfg.timing,
+            &self.cfg.swing,
+            true,
+        )?;
+        // The pendulum's jerk: d/dt ẍ = (g / z_c) ẋ.
+        let k = self.cfg.g / self.cfg.z_c;
+        let settle = self.preview_pattern(rest_tl, com, Some([k * vel[0], k * vel[1]]), Vec::new());
+        tl.settled = settle.timeline.settled;
+        tl.end = settle.timeline.end;
+        for mut s in settle.samples {
+            s.phase = Phase::Double { step: None };
+            s.zmp_ref = settle.timeline.zmp_ref(s.t);
+            samples.push(s);
+        }
+        Ok(Pattern {
+            dt,
+            timeline: tl,
+            samples,
+            placed,
+        })
+    }
+
+    /// The pattern of a plan, checked: where the ZMP's margin in the support polygon falls
+    /// below the bar, the step under way then is given more time (up to T_max) and the
+    /// pattern made again; a plan that still fails is refused, with the step and the margin.
+    pub fn plan(&self, start: &Start, steps: &[Footstep]) -> Result<Pattern, GaitError> {
+        let timing = &self.cfg.timing;
+        let mut durations: Vec<f64> = vec![0.0; steps.len()];
+        for _ in 0..64 {
+            let pat = self.generate(start, steps, &durations)?;
+            let bad = pat
+                .samples
+                .iter()
+                .find(|s| !(s.margin >= self.cfg.min_margin));
+            let Some(bad) = bad else {
+                return Ok(pat);
+            };
+            let fail = |why: &str| {
+                Err(GaitError::Zmp(format!(
+                    "the ZMP comes {:.4} m from the support polygon's edge at {:.3} s \
+                     (at least {} m wanted){why}",
+                    bad.margin,
+                    bad.t - start.t,
+                    self.cfg.min_margin
+                )))
+            };
+            if self.cfg.generator == Kind::FootPlacement || steps.is_empty() {
+                return fail("");
+            }
+            // The step under way (or the last, in the final settle; the first before it).
+            let i = match bad.phase {
+                Phase::Single { step, .. } | Phase::Double { step: Some(step) } => step,
+                Phase::Double { step: None } => {
+                    if bad.t >= pat.timeline.steps.last().map_or(f64::MAX, |s| s.land) {
+                        pat.timeline.steps.len() - 1
+                    } else {
+                        0
+                    }
+                }
+            };
+            // The timeline's first step is the one under way, when there is one: its times
+            // are fixed. The plan's step j is the timeline's j (the plan retargets the step
+            // under way) or j + 1.
+            let under = start.under_way.is_some();
+            if under && i == 0 {
+                return fail(" during the step under way, whose times are fixed");
+            }
+            let j = if under && !Generator::continues(start, steps) {
+                i - 1
+            } else {
+                i
+            };
+            let s = &pat.timeline.steps[i];
+            let now = s.land - s.start;
+            if now >= timing.t_max - 1e-9 {
+                return fail(&format!(
+                    " in step {}, whose time is stretched to T_max = {} s already",
+                    steps[j].number, timing.t_max
+                ));
+            }
+            durations[j] = (now * 1.15).min(timing.t_max);
+        }
+        Err(GaitError::Zmp(
+            "no step timing found that keeps the ZMP inside".into(),
+        ))
+    }
+}

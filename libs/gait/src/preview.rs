@@ -1,0 +1,350 @@
+//! ZMP preview control on the cart-table model (Kajita et al., ICRA 2003), the default COM
+//! pattern: the COM at constant height z_c is a cart driven by its jerk u, state
+//! x = (x, ẋ, ẍ) sampled every T s,
+//!
+//! x⁺ = A x + B u,  A = [[1, T, T²/2], [0, 1, T], [0, 0, 1]],  B = (T³/6, T²/2, T),
+//!
+//! and its ZMP is the table's centre of pressure p = C x = x − (z_c / g) ẍ. The jerk is the
+//! optimal preview servo of Katayama et al. (1985) as Kajita uses it: with the tracking
+//! error's sum and the state's increment in an augmented system (Ã, B̃), the discrete
+//! Riccati equation's solution P gives the integral gain G_i, the state gain G_x and the
+//! preview gains G_p(j) for the next N references:
+//!
+//! u_k = −G_i Σ_{i ≤ k} (C x_i − p_ref,i) − G_x x_k − Σ_{j=1..N} G_p(j) p_ref,k+j.
+//!
+//! The Riccati equation is solved by its doubling iteration (no linear-algebra crate: the
+//! matrices are 4 × 4). x and y are two independent carts with the same gains. The state
+//! carries over from one reference to the next ([`Cart`]), so a new plan mid-walk continues
+//! the COM's position, velocity and acceleration exactly.
+
+use serde::Deserialize;
+
+use crate::GaitError;
+
+/// The controller's parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PreviewConfig {
+    /// Control period T, s.
+    pub period: f64,
+    /// Preview horizon, s (N = horizon / T references ahead).
+    pub horizon: f64,
+    /// Weight of the ZMP tracking error's sum, Q_e.
+    pub q_e: f64,
+    /// Weight of the jerk, R.
+    pub r: f64,
+}
+
+impl Default for PreviewConfig {
+    /// Kajita's: T = 5 ms, Q_e = 1, R = 10⁻⁶; a 2.4 s horizon (three steps of 0.8 s).
+    fn default() -> PreviewConfig {
+        PreviewConfig {
+            period: 0.005,
+            horizon: 2.4,
+            q_e: 1.0,
+            r: 1e-6,
+        }
+    }
+}
+
+type M4 = [[f64; 4]; 4];
+type V4 = [f64; 4];
+
+fn mul4(a: &M4, b: &M4) -> M4 {
+    let mut c = [[0.0; 4]; 4];
+    for i in 0..4 {
+        for k in 0..4 {
+            let aik = a[i][k];
+            for j in 0..4 {
+                c[i][j] += aik * b[k][j];
+            }
+        }
+    }
+    c
+}
+
+fn tr4(a: &M4) -> M4 {
+    std::array::from_fn(|i| std::array::from_fn(|j| a[j][i]))
+}
+
+fn add4(a: &M4, b: &M4) -> M4 {
+    std::array::from_fn(|i| std::array::from_fn(|j| a[i][j] + b[i][j]))
+}
+
+fn mv4(a: &M4, v: &V4) -> V4 {
+    std::array::from_fn(|i| (0..4).map(|k| a[i][k] * v[k]).sum())
+}
+
+fn dot4(a: &V4, b: &V4) -> f64 {
+    (0..4).map(|k| a[k] * b[k]).sum()
+}
+
+/// The inverse of a 4 × 4 matrix by Gauss-Jordan elimination with partial pivoting.
+fn inv4(a: &M4) -> Option<M4> {
+    let mut m = *a;
+    let mut inv: M4 = std::array::from_fn(|i| std::array::from_fn(|j| (i == j) as u8 as f64));
+    for col in 0..4 {
+        let piv = (col..4).max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs()))?;
+        if m[piv][col].abs() < 1e-300 || !m[piv][col].is_finite() {
+            return None;
+        }
+        m.swap(col, piv);
+        inv.swap(col, piv);
+        let d = m[col][col];
+        for j in 0..4 {
+            m[col][j] /= d;
+            inv[col][j] /= d;
+        }
+        for row in 0..4 {
+            if row != col {
+                let f = m[row][col];
+                if f != 0.0 {
+                    for j in 0..4 {
+                        m[row][j] -= f * m[col][j];
+                        inv[row][j] -= f * inv[col][j];
+                    }
+                }
+            }
+        }
+    }
+    Some(inv)
+}
+
+/// The stabilising solution of the discrete algebraic Riccati equation
+/// P = Q + AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA for a single input (B a column, R a scalar), by
+/// the structure-preserving doubling algorithm (quadratic convergence).
+fn dare(a: &M4, b: &V4, q: &M4, r: f64) -> Result<M4, GaitError> {
+    let eye: M4 = std::array::from_fn(|i| std::array::from_fn(|j| (i == j) as u8 as f64));
+    // G = B R⁻¹ Bᵀ, H = Q, A_k = A.
+    let mut ak = *a;
+    let mut g: M4 = std::array::from_fn(|i| std::array::from_fn(|j| b[i] * b[j] / r));
+    let mut h = *q;
+    for _ in 0..200 {
+        // W = (I + G H)⁻¹
+        let w = inv4(&add4(&eye, &mul4(&g, &h)))
+            .ok_or_else(|| GaitError::Parameter("the Riccati iteration is singular".into()))?;
+        let aw = mul4(&ak, &w);
+        let g_next = add4(&g, &mul4(&mul4(&aw, &g), &tr4(&ak)));
+        let h_next = add4(&h, &mul4(&mul4(&tr4(&ak), &h), &mul4(&w, &ak)));
+        let a_next = mul4(&aw, &ak);
+        let change = (0..4)
+            .flat_map(|i| (0..4).map(move |j| (i, j)))
+            .map(|(i, j)| (h_next[i][j] - h[i][j]).abs() / (1.0 + h_next[i][j].abs()))
+            .fold(0.0, f64::max);
+        ak = a_next;
+        g = g_next;
+        h = h_next;
+        if !change.is_finite() {
+            break;
+        }
+        if change < 1e-14 {
+            return Ok(h);
+        }
+    }
+    Err(GaitError::Parameter(
+        "the Riccati equation of the preview controller did not converge".into(),
+    ))
+}
+
+/// The preview controller's gains for one COM height.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Preview {
+    cfg: PreviewConfig,
+    z_c: f64,
+    g: f64,
+    a: [[f64; 3]; 3],
+    b: [f64; 3],
+    c: [f64; 3],
+    /// Integral gain G_i.
+    gi: f64,
+    /// State gain G_x.
+    gx: [f64; 3],
+    /// Preview gains G_p(1..=N).
+    gp: Vec<f64>,
+}
+
+/// One cart (one axis) with the sum of its tracking errors.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Cart {
+    /// Position, velocity, acceleration.
+    pub x: [f64; 3],
+    /// Σ (C x − p_ref) so far.
+    pub err_sum: f64,
+}
+
+impl Preview {
+    /// The gains for a COM at `z_c` m under gravity `g`.
+    pub fn new(cfg: PreviewConfig, z_c: f64, g: f64) -> Result<Preview, GaitError> {
+        for (name, v) in [
+            ("period", cfg.period),
+            ("horizon", cfg.horizon),
+            ("q_e", cfg.q_e),
+            ("r", cfg.r),
+            ("z_c", z_c),
+            ("g", g),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(GaitError::Parameter(format!(
+                    "preview control: {name} must be positive and finite, not {v}"
+                )));
+            }
+        }
+        let n = (cfg.horizon / cfg.period).round() as usize;
+        if n < 1 {
+            return Err(GaitError::Parameter(
+                "preview control: the horizon must be at least one period".into(),
+            ));
+        }
+        let t = cfg.period;
+        let a = [[1.0, t, t * t / 2.0], [0.0, 1.0, t], [0.0, 0.0, 1.0]];
+        let b = [t * t * t / 6.0, t * t / 2.0, t];
+        let c = [1.0, 0.0, -z_c / g];
+        // Augmented system: (e_k, Δx_k) with e the tracking error.
+        let ca: [f64; 3] = std::array::from_fn(|j| (0..3).map(|k| c[k] * a[k][j]).sum());
+        let cb: f64 = (0..3).map(|k| c[k] * b[k]).sum();
+        let mut at: M4 = [[0.0; 4]; 4];
+        at[0][0] = 1.0;
+        for j in 0..3 {
+            at[0][j + 1] = ca[j];
+            for i in 0..3 {
+                at[i + 1][j + 1] = a[i][j];
+            }
+        }
+        let bt: V4 = [cb, b[0], b[1], b[2]];
+        let mut q: M4 = [[0.0; 4]; 4];
+        q[0][0] = cfg.q_e;
+        let p = dare(&at, &bt, &q, cfg.r)?;
+        let pb = mv4(&p, &bt);
+        let denom = cfg.r + dot4(&bt, &pb);
+        // K = (R + B̃ᵀPB̃)⁻¹ B̃ᵀ P Ã = [G_i, G_x]
+        let pa = mul4(&p, &at);
+        let k: V4 = std::array::from_fn(|j| (0..4).map(|i| bt[i] * pa[i][j]).sum::<f64>() / denom);
+        let gi = k[0];
+        let gx = [k[1], k[2], k[3]];
+        // Ã_c = Ã − B̃ K; X(1) = −Ã_cᵀ P Ĩ; G_p(1) = −G_i; G_p(j) = B̃ᵀ X(j−1) / denom.
+        let ac: M4 = std::array::from_fn(|i| std::array::from_fn(|j| at[i][j] - bt[i] * k[j]));
+        let act = tr4(&ac);
+        let pi: V4 = [p[0][0], p[1][0], p[2][0], p[3][0]];
+        let mut x = mv4(&act, &pi).map(|v| -v);
+        let mut gp = Vec::with_capacity(n);
+        gp.push(-gi);
+        for _ in 1..n {
+            gp.push(dot4(&bt, &x) / denom);
+            x = mv4(&act, &x);
+        }
+        if !(gi.is_finite() && gx.iter().all(|v| v.is_finite()) && gp.iter().all(|v| v.is_finite()))
+        {
+            return Err(GaitError::Parameter(
+                "preview control: the gains are not finite".into(),
+            ));
+        }
+        Ok(Preview {
+            cfg,
+            z_c,
+            g,
+            a,
+            b,
+            c,
+            gi,
+            gx,
+            gp,
+        })
+    }
+
+    /// The parameters.
+    pub fn config(&self) -> &PreviewConfig {
+        &self.cfg
+    }
+
+    /// The COM height the gains are for, m.
+    pub fn z_c(&self) -> f64 {
+        self.z_c
+    }
+
+    /// Gravity, m/s².
+    pub fn g(&self) -> f64 {
+        self.g
+    }
+
+    /// N: how many references ahead each tick reads.
+    pub fn horizon_ticks(&self) -> usize {
+        self.gp.len()
+    }
+
+    /// The preview gains G_p(1..=N).
+    pub fn preview_gains(&self) -> &[f64] {
+        &self.gp
+    }
+
+    /// The integral and state gains.
+    pub fn gains(&self) -> (f64, [f64; 3]) {
+        (self.gi, self.gx)
+    }
+
+    /// The cart-table ZMP of a state: x − (z_c / g) ẍ.
+    pub fn zmp(&self, x: &[f64; 3]) -> f64 {
+        self.c[0] * x[0] + self.c[2] * x[2]
+    }
+
+    /// One tick of one axis: `now` is p_ref,k and `ahead` holds p_ref,k+1 onwards (at least
+    /// N of them; see [`Preview::horizon_ticks`]). Returns the jerk applied.
+    #[inline]
+    pub fn tick(&self, cart: &mut Cart, now: f64, ahead: &[f64]) -> f64 {
+        let x = cart.x;
+        cart.err_sum += self.zmp(&x) - now;
+        let mut preview = 0.0;
+        for (g, p) in self.gp.iter().zip(ahead) {
+            preview += g * p;
+        }
+        let u = -self.gi * cart.err_sum
+            - (self.gx[0] * x[0] + self.gx[1] * x[1] + self.gx[2] * x[2])
+            - preview;
+        let a = &self.a;
+        cart.x = [
+            a[0][0] * x[0] + a[0][1] * x[1] + a[0][2] * x[2] + self.b[0] * u,
+            x[1] + a[1][2] * x[2] + self.b[1] * u,
+            x[2] + self.b[2] * u,
+        ];
+        u
+    }
+
+    /// Bumpless transfer: sets the cart's error sum so that its next tick (with the reference
+    /// `now` and `ahead`) applies the jerk `u`: the controller takes over a cart in motion (a
+    /// pendulum's, a pattern's before a new plan) from the jerk it has, and the error sum,
+    /// a free state of the controller, carries the difference away over time.
+    pub fn bumpless(&self, cart: &mut Cart, now: f64, ahead: &[f64], u: f64) {
+        let x = cart.x;
+        let mut preview = 0.0;
+        for (g, p) in self.gp.iter().zip(ahead) {
+            preview += g * p;
+        }
+        let sum = -(u + self.gx[0] * x[0] + self.gx[1] * x[1] + self.gx[2] * x[2] + preview)
+            / self.gi;
+        cart.err_sum = sum - (self.zmp(&x) - now);
+    }
+
+    /// Runs one axis over a whole reference: from `cart`, a tick per reference sample
+    /// `reference[k]` for k in `0..ticks`, reading ahead into the reference (which must hold
+    /// at least `ticks + N` samples: pad it with its last value). Returns the states after
+    /// each tick.
+    pub fn run(
+        &self,
+        cart: &mut Cart,
+        reference: &[f64],
+        ticks: usize,
+    ) -> Result<Vec<[f64; 3]>, GaitError> {
+        let n = self.gp.len();
+        if reference.len() < ticks + n {
+            return Err(GaitError::Parameter(format!(
+                "preview control: {} references for {ticks} ticks and a horizon of {n}",
+                reference.len()
+            )));
+        }
+        let mut out = Vec::with_capacity(ticks);
+        for k in 0..ticks {
+            self.tick(cart, reference[k], &reference[k + 1..k + 1 + n]);
+            out.push(cart.x);
+        }
+        Ok(out)
+    }
+}

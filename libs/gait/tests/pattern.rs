@@ -1,0 +1,263 @@
+//! COM, ZMP and swing patterns: the preview controller's tracking, the ZMP's margin, the
+//! continuity of a plan replaced mid-walk, the stretching of step times, the swing's
+//! splines, and Archie's joints over them.
+
+mod common;
+
+use common::{archie, config, generator, standing, straight};
+use stride_gait::archie::default_z_c;
+use stride_gait::pattern::{Generator, Kind, Start};
+use stride_gait::preview::{Cart, Preview, PreviewConfig};
+use stride_gait::swing::{SwingConfig, SwingPath};
+use stride_gait::timeline::{Footstep, Phase, Side};
+use stride_gait::GaitError;
+
+fn walk(kind: Kind, n: usize, length: f64) -> (Generator, stride_gait::pattern::Pattern) {
+    let g = generator(kind);
+    let (l, r) = standing();
+    let p = g.plan(&Start::standing(0.0, l, r), &straight(n, length, 1)).unwrap();
+    (g, p)
+}
+
+#[test]
+fn the_preview_controller_tracks_a_step_of_its_reference() {
+    let p = Preview::new(PreviewConfig::default(), 0.6, 9.80665).unwrap();
+    let n = p.horizon_ticks();
+    assert_eq!(n, 480);
+    // The reference steps from 0 to 0.1 m at tick 400; the cart follows, ahead of it.
+    let reference: Vec<f64> = (0..2000 + n).map(|k| if k < 400 { 0.0 } else { 0.1 }).collect();
+    let mut cart = Cart::default();
+    let states = p.run(&mut cart, &reference, 2000).unwrap();
+    let zmp: Vec<f64> = states.iter().map(|x| p.zmp(x)).collect();
+    // It starts moving before the step (preview), and ends on it at rest.
+    assert!(states[350][0].abs() > 1e-4, "{:?}", states[350]);
+    let end = states.last().unwrap();
+    assert!((end[0] - 0.1).abs() < 1e-4 && end[1].abs() < 1e-4, "{end:?}");
+    assert!((zmp[1999] - 0.1).abs() < 1e-4);
+    // Too short a reference is an error, not a panic.
+    assert!(p.run(&mut Cart::default(), &reference[..100], 2000).is_err());
+}
+
+#[test]
+fn a_straight_walk_keeps_the_zmp_a_centimetre_inside_its_soles() {
+    for kind in [Kind::Preview, Kind::FootPlacement] {
+        let (_, p) = walk(kind, 8, 0.2);
+        let (m, t) = p.min_margin();
+        assert!(m >= 0.01, "{kind:?}: margin {m} at {t}");
+        // It ends standing still between the feet.
+        let last = p.samples.last().unwrap();
+        let com = last.com.com();
+        assert!(com[1][0].abs() < 5e-3 && com[1][1].abs() < 5e-3, "{kind:?}: {com:?}");
+        let feet = p.timeline.feet_end;
+        let mid = [(feet[0][0] + feet[1][0]) / 2.0, (feet[0][1] + feet[1][1]) / 2.0];
+        assert!(
+            (com[0][0] - mid[0]).abs() < 0.01 && (com[0][1] - mid[1]).abs() < 0.01,
+            "{kind:?}: {com:?}"
+        );
+        eprintln!("{kind:?}: smallest margin {m:.4} m at {t:.2} s, {} samples", p.samples.len());
+    }
+}
+
+#[test]
+fn the_foot_placement_generator_moves_footsteps_a_little() {
+    let (_, p) = walk(Kind::FootPlacement, 8, 0.2);
+    assert_eq!(p.placed.len(), 7);
+    for (f, at) in &p.placed {
+        let d = (at[0] - f.place[0]).hypot(at[1] - f.place[1]);
+        assert!(d <= 0.05, "step {}: {d}", f.number);
+    }
+}
+
+/// The largest difference between two samples' COM states and feet.
+fn jump(a: &stride_gait::pattern::Sample, b: &stride_gait::pattern::Sample) -> f64 {
+    let (ca, cb) = (a.com.com(), b.com.com());
+    let mut d: f64 = 0.0;
+    for i in 0..3 {
+        for j in 0..2 {
+            d = d.max((ca[i][j] - cb[i][j]).abs());
+        }
+    }
+    for f in 0..2 {
+        for i in 0..3 {
+            for j in 0..4 {
+                d = d.max((a.feet[f][i][j] - b.feet[f][i][j]).abs());
+            }
+        }
+    }
+    d
+}
+
+#[test]
+fn a_plan_replaced_mid_swing_continues_the_com_and_the_swing_foot() {
+    let (g, old) = walk(Kind::Preview, 8, 0.2);
+    // Mid-swing of the third step.
+    let s = &old.timeline.steps[2];
+    let k = old.index_at((s.lift + s.land) / 2.0);
+    assert!(matches!(old.samples[k].phase, Phase::Single { step: 2, .. }));
+    let start = old.state_at(k);
+    let sw = start.under_way.unwrap();
+    assert_eq!(sw.footstep.number, 3);
+    // The new plan: the swing under way lands 1 cm further out, the rest 2 cm to the left
+    // and turned a little.
+    let mut steps: Vec<Footstep> = straight(8, 0.2, 1)[2..].to_vec();
+    let side = sw.footstep.side;
+    steps[0].place[1] += 0.01 * if side == Side::Left { 1.0 } else { -1.0 };
+    for f in &mut steps[1..] {
+        f.place[3] = 0.05;
+        f.place[1] += 0.02;
+    }
+    let new = g.plan(&start, &steps).unwrap();
+    // At the switch: the same COM (position, velocity, acceleration) and feet, to 1e-9.
+    let d = jump(&old.samples[k], &new.samples[0]);
+    assert!(d < 1e-9, "{d:e}");
+    // And on: one period later both differ by what a period of jerk can make.
+    let d1 = jump(&old.samples[k + 1], &new.samples[1]);
+    assert!(d1 < 0.01, "{d1}");
+    // The swing lands where the new plan says, when the old one would have.
+    let landed = new.timeline.steps[0].land;
+    assert!((landed - sw.land).abs() < 1e-9);
+    let at = new.samples[new.index_at(landed + 0.01)].feet[side.index()][0];
+    assert!((at[1] - steps[0].place[1]).abs() < 1e-9, "{at:?}");
+    assert!(new.min_margin().0 >= 0.01);
+}
+
+#[test]
+fn a_plan_replaced_in_double_support_continues_the_com() {
+    let (g, old) = walk(Kind::Preview, 8, 0.2);
+    let s = &old.timeline.steps[3];
+    let k = old.index_at((s.start + s.lift) / 2.0);
+    assert!(matches!(old.samples[k].phase, Phase::Double { step: Some(3) }));
+    let start = old.state_at(k);
+    let mut steps: Vec<Footstep> = straight(8, 0.2, 1)[3..].to_vec();
+    for f in &mut steps[1..] {
+        f.place[0] -= 0.03;
+    }
+    let new = g.plan(&start, &steps).unwrap();
+    assert!(jump(&old.samples[k], &new.samples[0]) < 1e-9);
+}
+
+#[test]
+fn a_step_whose_zmp_fails_is_given_more_time_and_an_impossible_one_is_refused() {
+    let g = generator(Kind::Preview);
+    let (l, r) = standing();
+    let start = Start::standing(0.0, l, r);
+    // Long quick strides: at the shortest step time the ZMP would leave the sole's margin.
+    let mut cfg = config(Kind::Preview);
+    cfg.timing.t_min = 0.3;
+    cfg.timing.speed = 10.0;
+    cfg.timing.double_support = 0.1;
+    let quick = Generator::new(cfg).unwrap();
+    let steps = straight(6, 0.3, 1);
+    let unchecked = quick.generate(&start, &steps, &[]).unwrap();
+    let (m0, _) = unchecked.min_margin();
+    let checked = quick.plan(&start, &steps).unwrap();
+    let (m1, _) = checked.min_margin();
+    let stretched = checked
+        .timeline
+        .steps
+        .iter()
+        .filter(|s| s.land - s.start > 0.3 + 1e-9)
+        .count();
+    eprintln!("at T_min the margin is {m0:.4} m; stretched {stretched} steps: {m1:.4} m");
+    assert!(m0 < 0.01 && m1 >= 0.01 && stretched > 0);
+    // With no room to stretch (T_max at T_min), the same plan is refused, saying so.
+    let mut cfg = config(Kind::Preview);
+    cfg.timing.t_min = 0.3;
+    cfg.timing.t_max = 0.3;
+    cfg.timing.speed = 10.0;
+    cfg.timing.double_support = 0.1;
+    let rigid = Generator::new(cfg).unwrap();
+    match rigid.plan(&start, &steps) {
+        Err(GaitError::Zmp(m)) => assert!(m.contains("T_max"), "{m}"),
+        Err(e) => panic!("{e}"),
+        Ok(p) => panic!("taken, margin {:?}", p.min_margin()),
+    }
+    let _ = g;
+}
+
+#[test]
+fn swings_are_c2_hit_their_via_points_and_rest_at_both_ends() {
+    let cfg = SwingConfig::default();
+    let path = SwingPath::new([0.0, 0.1, 0.0, 0.0], [0.3, 0.12, 0.05, 0.2], 0.1, 0.6, &cfg).unwrap();
+    let apex = path.apex;
+    assert!((apex - 0.13).abs() < 1e-12);
+    for v in &cfg.via {
+        let p = path.at(v.time * 0.6)[0];
+        let ground = 0.0 + v.height * (apex - (0.0 + v.along * 0.05));
+        assert!((p[0] - v.along * 0.3).abs() < 1e-9, "{p:?}");
+        assert!((p[2] - (v.along * 0.05 + ground)).abs() < 1e-9, "{p:?}");
+    }
+    for t in [0.0, 0.6] {
+        let [_, vel, acc] = path.at(t);
+        assert!(vel.iter().chain(acc.iter()).all(|x| x.abs() < 1e-9), "{vel:?} {acc:?}");
+    }
+    // C²: no jump of position, velocity or acceleration anywhere (sampled across knots).
+    let mut t = 0.0;
+    while t < 0.6 {
+        let (a, b) = (path.at(t - 1e-9), path.at(t + 1e-9));
+        for k in 0..4 {
+            assert!((a[0][k] - b[0][k]).abs() < 1e-8);
+            assert!((a[1][k] - b[1][k]).abs() < 1e-6);
+            assert!((a[2][k] - b[2][k]).abs() < 1e-4, "{t}");
+        }
+        t += 0.0125;
+    }
+}
+
+#[test]
+fn archies_joints_follow_the_pattern_within_their_limits() {
+    let (_, p) = walk(Kind::Preview, 8, 0.2);
+    let a = archie();
+    let plan = a.joints(&p).unwrap();
+    assert_eq!(plan.left.positions.len(), plan.times.len());
+    // Forward kinematics of the rows puts the feet where the pattern has them.
+    let mut worst: f64 = 0.0;
+    for (i, &t) in plan.times.iter().enumerate() {
+        let k = p.index_at(p.timeline.start + t + 1e-9);
+        let pelvis = a.pelvis_at(&p, k);
+        for (leg, rows, f) in [
+            (stride_kinematics::archie::Leg::Left, &plan.left, 0),
+            (stride_kinematics::archie::Leg::Right, &plan.right, 1),
+        ] {
+            let sole = pelvis.then(&stride_kinematics::archie::fk(&a.robot.links, leg, &rows.positions[i]));
+            let want = p.samples[k].feet[f][0];
+            let frame = a.robot.sole_frame([want[0], want[1], want[2]], want[3]);
+            worst = worst.max(sole.distance(&frame).0);
+        }
+    }
+    assert!(worst < 1e-9, "{worst}");
+}
+
+#[test]
+fn the_multibody_zmp_agrees_with_the_cart_table_zmp() {
+    let (g, p) = walk(Kind::Preview, 8, 0.2);
+    let a = archie();
+    let plan = a.joints(&p).unwrap();
+    let mb = a.multibody_zmp(&p, &plan, g.config().g);
+    let stride = (a.row_period / p.dt).round() as usize;
+    let worst = mb
+        .iter()
+        .enumerate()
+        .map(|(i, z)| {
+            let c = p.samples[i * stride].zmp;
+            (z[0] - c[0]).hypot(z[1] - c[1])
+        })
+        .fold(0.0, f64::max);
+    eprintln!("multibody against cart-table ZMP: worst {worst:.4} m");
+    assert!(worst < 0.06, "{worst}");
+}
+
+#[test]
+fn the_com_height_comes_from_the_legs_and_0_72_m_is_out_of_reach() {
+    let z = common::z_c();
+    assert!(z > 0.5 && z < 0.66, "{z}");
+    let mut a = archie();
+    a.z_c = 0.72;
+    let (_, p) = walk(Kind::Preview, 4, 0.2);
+    match a.joints(&p) {
+        Err(GaitError::Plan(m)) => assert!(m.contains("unreachable"), "{m}"),
+        Err(e) => panic!("{e}"),
+        Ok(_) => panic!("walked at 0.72 m"),
+    }
+    let _ = default_z_c;
+}

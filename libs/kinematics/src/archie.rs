@@ -1,0 +1,843 @@
+//! Archie's legs (TU Wien's cost-oriented humanoid, 6 joints a leg) in one re-derived
+//! convention, with the thesis's material checked against it.
+//!
+//! # The convention
+//!
+//! The pelvis frame has x forward, y left, z up, its origin at the pelvis centre (the middle
+//! of the hip bar, the thesis's COM). A leg, from the pelvis down (`s` = +1 left, −1 right):
+//!
+//! - the hip joint H at (0, s·a6/2, d6): the three hip axes meet there (links 4 and 5 of the
+//!   DH tables have zero a and d); the bar hangs d6 below it;
+//! - hip yaw about z, hip roll about x, hip pitch about y;
+//! - the thigh, d3 further out along the pitch axis (0, s·d3, 0), then a3 down to the knee;
+//! - knee pitch about y; the shank, a2 down to the ankle pitch axis; ankle pitch about y;
+//! - a1 down to the ankle roll axis (the ankle's two axes do not meet); ankle roll about x;
+//! - the sole `sole` below that: the sole frame (x along the foot) is the leg's end.
+//!
+//! All angles are right-handed about those axes, zero with the legs straight and the feet
+//! flat: a knee bends positive, a thigh lifted forward is a negative hip pitch.
+//!
+//! # The thesis's tables and script
+//!
+//! The symbolic DH tables 3 and 4 with the numbers of `Stepping.sce` (cm to m: a1 = 12,
+//! a2 = 26, a3 = 31, d3 = 7.5, a6 = 18, d6 = 5, the sole 3.5 below the ankle roll axis) give
+//! this geometry only with one quarter turn they do not print: +π/2 on DH joint 5 (the hip
+//! roll; without it the yaw axis lies horizontal and the bar points forward), a base frame
+//! with x up, y right and z forward (the ankle roll axis) 3.5 cm above the sole, and the DH
+//! angles (θ1..θ6) = (θ0, −θ1, −θ2, −θ3, θ4 + π/2, θ5) of the script's right (support) leg,
+//! (−θ11, θ10, θ9, θ8, −θ7 + π/2, −θ6) of its left (swing) leg ([`dh_frames`] checks it).
+//! "Joint 6 is the COM" holds only for frame 6 moved half of a6 along its x: frame 6 itself
+//! is the bar's end under the other hip. Eqs 31-36 agree with neither table (they need two
+//! unprinted offsets).
+//!
+//! `Stepping.sce`'s hand-written chain (eqs 38-40, [`scilab_chain`], repaired as
+//! documented there) is exact only with an upright pelvis (the support leg's pitches summing
+//! to 0, its rolls summing to 0 or no hip yaw, and the swing hip's yaw undoing the support's);
+//! elsewhere it is off by centimetres. Its joint pattern (eqs 41-54, [`joint_pattern`]) keeps
+//! the pelvis upright, where the chain is exact.
+
+use serde::Deserialize;
+
+use crate::math::{mul, mv, rx, ry, rz, sub, tr, Pose, V3};
+use crate::KinError;
+
+/// The legs' dimensions, m.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Links {
+    /// Ankle pitch axis to ankle roll axis.
+    pub a1: f64,
+    /// Shank: knee to ankle pitch axis.
+    pub a2: f64,
+    /// Thigh: hip joint to knee.
+    pub a3: f64,
+    /// The thigh's offset out from the hip joint, along the pitch axis.
+    pub d3: f64,
+    /// Between the hip joints.
+    pub a6: f64,
+    /// The hip joints above the bar (the pelvis centre).
+    pub d6: f64,
+    /// The ankle roll axis above the sole.
+    pub sole: f64,
+}
+
+impl Links {
+    /// `Stepping.sce`'s numbers (cm to m).
+    pub const SCRIPT: Links = Links {
+        a1: 0.12,
+        a2: 0.26,
+        a3: 0.31,
+        d3: 0.075,
+        a6: 0.18,
+        d6: 0.05,
+        sole: 0.035,
+    };
+
+    fn check(&self) -> Result<(), KinError> {
+        let l = [self.a1, self.a2, self.a3, self.d3, self.a6, self.d6, self.sole];
+        if l.iter().all(|v| v.is_finite() && *v >= 0.0) && self.a2 > 0.0 && self.a3 > 0.0 {
+            Ok(())
+        } else {
+            Err(KinError::Config(format!(
+                "Archie's links must be finite, not negative, shank and thigh positive: {self:?}"
+            )))
+        }
+    }
+}
+
+/// A leg.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Leg {
+    /// The left leg.
+    Left,
+    /// The right leg.
+    Right,
+}
+
+impl Leg {
+    /// +1 for the left leg, −1 for the right.
+    pub fn sign(self) -> f64 {
+        match self {
+            Leg::Left => 1.0,
+            Leg::Right => -1.0,
+        }
+    }
+
+    /// "left" or "right".
+    pub fn name(self) -> &'static str {
+        match self {
+            Leg::Left => "left",
+            Leg::Right => "right",
+        }
+    }
+}
+
+/// The joints of a leg, in order from the pelvis.
+pub const JOINTS: [&str; 6] = [
+    "hip_yaw",
+    "hip_roll",
+    "hip_pitch",
+    "knee",
+    "ankle_pitch",
+    "ankle_roll",
+];
+
+/// A leg's six joint angles, rad, in [`JOINTS`] order.
+pub type Q = [f64; 6];
+
+/// Points of a leg (pelvis frame, m): the hip joint, the knee, the ankle pitch axis, the
+/// ankle roll axis, the sole.
+pub type LegPoints = [V3; 5];
+
+/// The hip joint of a leg, pelvis frame.
+pub fn hip(links: &Links, leg: Leg) -> V3 {
+    [0.0, leg.sign() * links.a6 / 2.0, links.d6]
+}
+
+/// Forward kinematics: the sole frame of `leg` in the pelvis frame.
+pub fn fk(links: &Links, leg: Leg, q: &Q) -> Pose {
+    fk_points(links, leg, q).0
+}
+
+/// Forward kinematics with the leg's points on the way (for the links' masses).
+pub fn fk_points(links: &Links, leg: Leg, q: &Q) -> (Pose, LegPoints) {
+    let s = leg.sign();
+    let h = hip(links, leg);
+    let r_hip = mul(&mul(&rz(q[0]), &rx(q[1])), &ry(q[2]));
+    let top = crate::math::add(&h, &mv(&r_hip, &[0.0, s * links.d3, 0.0]));
+    let knee = crate::math::add(&top, &mv(&r_hip, &[0.0, 0.0, -links.a3]));
+    let r_shank = mul(&r_hip, &ry(q[3]));
+    let pitch = crate::math::add(&knee, &mv(&r_shank, &[0.0, 0.0, -links.a2]));
+    let r_link = mul(&r_shank, &ry(q[4]));
+    let roll = crate::math::add(&pitch, &mv(&r_link, &[0.0, 0.0, -links.a1]));
+    let r_foot = mul(&r_link, &rx(q[5]));
+    let sole = crate::math::add(&roll, &mv(&r_foot, &[0.0, 0.0, -links.sole]));
+    (
+        Pose {
+            r: r_foot,
+            p: sole,
+        },
+        [h, knee, pitch, roll, sole],
+    )
+}
+
+/// A cosine a rounding error past ±1 (a straight knee) brought back to it; further out, left
+/// as it is for the caller to refuse.
+fn snap(c: f64) -> f64 {
+    if c.abs() > 1.0 && c.abs() < 1.0 + 1e-12 {
+        c.signum()
+    } else {
+        c
+    }
+}
+
+fn wrap(a: f64) -> f64 {
+    let w = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+    if w <= -std::f64::consts::PI {
+        w + std::f64::consts::TAU
+    } else {
+        w
+    }
+}
+
+/// Inverse kinematics in closed form: the joints that put the sole of `leg` at `sole`
+/// (pelvis frame), the knee bent forward (positive). From the foot up, the hip joint's place
+/// in the foot frame fixes the ankle roll (the thigh's offset d3 keeps its distance from the
+/// roll axis), then the knee and the ankle pitch (two links in the pitch plane above the
+/// ankle's a1); the hip's yaw, roll and pitch are what rotation is left. An error, never NaN,
+/// for a sole out of reach or a hip roll of ±90° (where yaw and pitch are one).
+pub fn ik(links: &Links, leg: Leg, sole: &Pose) -> Result<Q, KinError> {
+    if !(sole.p.iter().chain(sole.r.iter().flatten()).all(|v| v.is_finite())) {
+        return Err(KinError::Unreachable(format!("{} foot: not finite", leg.name())));
+    }
+    let s = leg.sign();
+    let h = hip(links, leg);
+    let r_f = sole.r;
+    // The ankle roll axis's point, and the hip joint seen from it in the foot frame.
+    let a = crate::math::add(&sole.p, &mv(&r_f, &[0.0, 0.0, links.sole]));
+    let r = mv(&tr(&r_f), &sub(&h, &a));
+    let y0 = -s * links.d3;
+    let yz2 = r[1] * r[1] + r[2] * r[2] - links.d3 * links.d3;
+    let out_of_reach = |what: &str| {
+        KinError::Unreachable(format!(
+            "{} foot: the hip joint is {:.4} m from the ankle ({what})",
+            leg.name(),
+            crate::math::norm(&r)
+        ))
+    };
+    if yz2 < 0.0 {
+        return Err(out_of_reach("closer to the roll axis than the thigh's offset"));
+    }
+    let z = yz2.sqrt();
+    let q5 = wrap(z.atan2(y0) - r[2].atan2(r[1]));
+    // The pitch plane: X = −a2 sin q4 − a3 sin(q3 + q4), Z − a1 = a2 cos q4 + a3 cos(q3 + q4).
+    let (x, zp) = (r[0], z - links.a1);
+    let (a2, a3) = (links.a2, links.a3);
+    let c3 = snap((x * x + zp * zp - a2 * a2 - a3 * a3) / (2.0 * a2 * a3));
+    if !(-1.0..=1.0).contains(&c3) {
+        return Err(out_of_reach(&format!(
+            "the knee reaches from {:.4} to {:.4} m",
+            (a3 - a2).abs(),
+            a2 + a3
+        )));
+    }
+    let q3 = c3.acos();
+    let (k1, k2) = (a2 + a3 * q3.cos(), a3 * q3.sin());
+    let q4 = wrap((-x).atan2(zp) - k2.atan2(k1));
+    // The hip: Rz(q0) Rx(q1) Ry(q2) = R_f Rx(−q5) Ry(−(q3 + q4)).
+    let m = mul(&mul(&r_f, &rx(-q5)), &ry(-(q3 + q4)));
+    let sb = m[2][1];
+    if !(-1.0..=1.0).contains(&sb) || (1.0 - sb * sb).sqrt() < 1e-9 {
+        return Err(KinError::Singular(format!(
+            "{} hip roll at ±90°: yaw and pitch turn about one axis",
+            leg.name()
+        )));
+    }
+    let q1 = sb.asin();
+    let q0 = (-m[0][1]).atan2(m[1][1]);
+    let q2 = (-m[2][0]).atan2(m[2][2]);
+    Ok([q0, q1, q2, q3, q4, q5])
+}
+
+/// The difference of two poses as a 6-vector: translation (m) and rotation vector (rad) of
+/// `target` seen from `at`.
+fn pose_error(at: &Pose, target: &Pose) -> [f64; 6] {
+    let dp = sub(&target.p, &at.p);
+    let r = mul(&target.r, &tr(&at.r));
+    // The rotation vector of r (axis · angle).
+    let c = ((r[0][0] + r[1][1] + r[2][2] - 1.0) / 2.0).clamp(-1.0, 1.0);
+    let angle = c.acos();
+    let v = [r[2][1] - r[1][2], r[0][2] - r[2][0], r[1][0] - r[0][1]];
+    let k = if angle < 1e-9 {
+        0.5
+    } else {
+        angle / (2.0 * angle.sin())
+    };
+    [dp[0], dp[1], dp[2], k * v[0], k * v[1], k * v[2]]
+}
+
+/// Solves `a · x = b` (6 × 6) by Gaussian elimination with partial pivoting.
+fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> Option<[f64; 6]> {
+    for col in 0..6 {
+        let piv = (col..6).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        if !(a[piv][col].abs() > 1e-300) {
+            return None;
+        }
+        a.swap(col, piv);
+        b.swap(col, piv);
+        for row in col + 1..6 {
+            let f = a[row][col] / a[col][col];
+            for k in col..6 {
+                a[row][k] -= f * a[col][k];
+            }
+            b[row] -= f * b[col];
+        }
+    }
+    let mut x = [0.0; 6];
+    for row in (0..6).rev() {
+        let s: f64 = (row + 1..6).map(|k| a[row][k] * x[k]).sum();
+        x[row] = (b[row] - s) / a[row][row];
+    }
+    Some(x)
+}
+
+/// Inverse kinematics by damped least squares from `q0` (the fallback of [`solve`]): the
+/// Jacobian by central differences, the step Jᵀ (J Jᵀ + λ² I)⁻¹ e, until the pose is met to
+/// 1e-12 m; an error when it is not within 200 iterations.
+pub fn ik_dls(links: &Links, leg: Leg, sole: &Pose, q0: &Q) -> Result<Q, KinError> {
+    let mut q = *q0;
+    let lambda2 = 1e-6;
+    for _ in 0..200 {
+        let e = pose_error(&fk(links, leg, &q), sole);
+        let err = e.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if err < 1e-12 {
+            return Ok(q.map(wrap));
+        }
+        let mut j = [[0.0; 6]; 6];
+        for k in 0..6 {
+            let h = 1e-7;
+            let (mut qp, mut qm) = (q, q);
+            qp[k] += h;
+            qm[k] -= h;
+            // The error's change: −(d pose / d q_k).
+            let ep = pose_error(&fk(links, leg, &qp), sole);
+            let em = pose_error(&fk(links, leg, &qm), sole);
+            for i in 0..6 {
+                j[i][k] = -(ep[i] - em[i]) / (2.0 * h);
+            }
+        }
+        // (J Jᵀ + λ² I) y = e; Δq = Jᵀ y.
+        let mut jjt = [[0.0; 6]; 6];
+        for (a, row) in jjt.iter_mut().enumerate() {
+            for (b, v) in row.iter_mut().enumerate() {
+                *v = (0..6).map(|k| j[a][k] * j[b][k]).sum::<f64>()
+                    + if a == b { lambda2 } else { 0.0 };
+            }
+        }
+        let y = solve6(jjt, e).ok_or_else(|| {
+            KinError::Singular(format!("{} leg: the Jacobian is singular", leg.name()))
+        })?;
+        for (k, qk) in q.iter_mut().enumerate() {
+            *qk += (0..6).map(|i| j[i][k] * y[i]).sum::<f64>();
+        }
+        if !q.iter().all(|v| v.is_finite()) {
+            break;
+        }
+    }
+    Err(KinError::Unreachable(format!(
+        "{} foot: damped least squares did not meet the pose",
+        leg.name()
+    )))
+}
+
+/// Inverse kinematics, checked: the closed form; where it has no answer for a singular pose,
+/// damped least squares from `near` (the last solution). Either way the answer's forward
+/// kinematics must meet the pose within 1e-9 m and 1e-9 rad.
+pub fn solve(links: &Links, leg: Leg, sole: &Pose, near: &Q) -> Result<Q, KinError> {
+    let q = match ik(links, leg, sole) {
+        Ok(q) => q,
+        Err(KinError::Singular(_)) => ik_dls(links, leg, sole, near)?,
+        Err(e) => return Err(e),
+    };
+    let (dp, dr) = fk(links, leg, &q).distance(sole);
+    if dp < 1e-9 && dr < 1e-9 {
+        Ok(q)
+    } else {
+        Err(KinError::Unreachable(format!(
+            "{} foot: the solution misses the pose by {dp:.2e} m, {dr:.2e} rad",
+            leg.name()
+        )))
+    }
+}
+
+/// The highest the pelvis centre stands (upright, level) with the feet `length` apart along
+/// x and `width` apart across (sole points), the pelvis anywhere on the middle 60 % of the
+/// way between them (where a double support's COM goes: it lags the ZMP, which reaches the
+/// feet), every knee bent at least `knee_min` rad: the height of the worst double support of
+/// a step of that length. By bisection.
+pub fn max_pelvis_height(links: &Links, length: f64, width: f64, knee_min: f64) -> f64 {
+    let ok = |z: f64| {
+        [0.2, 0.5, 0.8].iter().all(|&f| {
+            // The right foot at the origin, the left `length` ahead and `width` to the left;
+            // the pelvis a share f of the way from the right foot to the left.
+            let pelvis = [f * length, f * width, z];
+            [(Leg::Left, [length, width]), (Leg::Right, [0.0, 0.0])]
+                .iter()
+                .all(|&(leg, at)| {
+                    let sole = Pose::at([at[0] - pelvis[0], at[1] - pelvis[1], -z]);
+                    ik(links, leg, &sole).is_ok_and(|q| q[3] >= knee_min)
+                })
+        })
+    };
+    // From the top down to the first height that works (the heights that work are an
+    // interval: lower, the legs fold past their reach), then bisection above it.
+    let top = links.a3 + links.a2 + links.a1 + links.sole;
+    let step = 0.005;
+    let mut z = top;
+    while z > 0.0 && !ok(z) {
+        z -= step;
+    }
+    if z <= 0.0 {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (z, z + step);
+    for _ in 0..60 {
+        let mid = (lo + hi) / 2.0;
+        if ok(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+/// The DH frames of Table 4 (`Leg::Right`) or Table 3 (`Leg::Left`) with the script's
+/// numbers, the quarter turn on joint 5 and the base frame found for them, for the DH angles
+/// `theta` (θ1..θ6; see [`dh_angles`]): frames 0 to 6 in the frame of that leg's sole (x
+/// forward, y left, z up, below the ankle roll axis). Frame 6 is the bar's end under the
+/// other hip; the pelvis centre is frame 6 moved half of a6 along its x (Table 4's −a6 makes
+/// the right leg's x6 point right).
+pub fn dh_frames(links: &Links, leg: Leg, theta: &Q) -> [Pose; 7] {
+    let half = std::f64::consts::FRAC_PI_2;
+    // (a, α, d) of each link; Table 3's α1, α4 and a6 differ from Table 4's in sign.
+    let s = leg.sign();
+    let table = [
+        (links.a1, s * half, 0.0),
+        (links.a2, 0.0, 0.0),
+        (links.a3, 0.0, -links.d3),
+        (0.0, -s * half, 0.0),
+        (0.0, -half, 0.0),
+        (s * links.a6, 0.0, links.d6),
+    ];
+    let offsets = [0.0, 0.0, 0.0, 0.0, half, 0.0];
+    // Base (both legs): x0 up, y0 right, z0 forward (the ankle roll axis), the ankle roll
+    // axis's height above the sole.
+    let base = Pose {
+        r: [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]],
+        p: [0.0, 0.0, links.sole],
+    };
+    let mut frames = [base; 7];
+    for i in 0..6 {
+        let (a, alpha, d) = table[i];
+        let th = theta[i] + offsets[i];
+        let step = Pose::rot(rz(th))
+            .then(&Pose::at([0.0, 0.0, d]))
+            .then(&Pose::at([a, 0.0, 0.0]))
+            .then(&Pose::rot(rx(alpha)));
+        frames[i + 1] = frames[i].then(&step);
+    }
+    frames
+}
+
+/// The DH angles θ1..θ6 of `leg` for its joints `q`, from the ankle roll up (the base's
+/// axes turn the rolls around; Table 3's α1 and α4 turn the left leg's pitches too).
+pub fn dh_angles(leg: Leg, q: &Q) -> Q {
+    match leg {
+        Leg::Right => [-q[5], q[4], q[3], q[2], -q[1], q[0]],
+        Leg::Left => [-q[5], -q[4], -q[3], -q[2], -q[1], q[0]],
+    }
+}
+
+/// The pelvis frame in the frame of `leg`'s sole from its DH frames: frame 6 moved half of a6
+/// along its x toward the middle, turned to x forward, y left, z up.
+pub fn dh_pelvis(links: &Links, leg: Leg, frames: &[Pose; 7]) -> Pose {
+    frames[6].then(&Pose {
+        r: [[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]],
+        p: [-leg.sign() * links.a6 / 2.0, 0.0, 0.0],
+    })
+}
+
+/// The script's angles θ0..θ11 (right, support leg: θ0 ankle roll to θ5 hip yaw; left,
+/// swing leg: θ6 hip yaw to θ11 ankle roll) as the legs' joints (left, right).
+pub fn from_script(theta: &[f64; 12]) -> (Q, Q) {
+    let t = theta.map(wrap);
+    let right = [t[5], -t[4], -t[3], -t[2], -t[1], -t[0]];
+    let left = [-t[6], t[7], -t[8], -t[9], -t[10], t[11]];
+    (left, right)
+}
+
+/// `Stepping.sce`'s chain (eqs 38-40 as the script codes them) for its angles θ0..θ11: the
+/// points x0..x12 (the right ankle roll axis up the right leg, across the bar, down the left
+/// leg to its sole), metres, in the right sole's frame. Repaired where the print is damaged:
+/// y6 rebuilt from y61 and eq 39; y9's `+` for `*`; y10's a9 for a10; y11's `v` for `y`, its
+/// lost θ0 and `(i,i,1)`; y12's θ1 for θ11 and its duplicated tail; z10 to z12's lost `−`;
+/// z11's lost θ8 and θ10; z12's `)`.
+pub fn scilab_chain(links: &Links, theta: &[f64; 12]) -> [V3; 13] {
+    let (s, c) = (f64::sin, f64::cos);
+    let [t0, t1, t2, t3, t4, t5, t6, t7, t8, t9, t10, t11] = *theta;
+    let (a1, a2, a3, a6, d3, d6) = (links.a1, links.a2, links.a3, links.a6, links.d3, links.d6);
+    // The swing leg mirrors the support leg: a9 = a3, a10 = a2, a11 = a1, a12 = the sole.
+    let (a9, a10, a11, a12) = (a3, a2, a1, links.sole);
+    let p123 = t1 + t2 + t3;
+    let (x0, y0, z0) = (0.0, 0.0, links.sole);
+    let x1 = x0;
+    let x2 = x0 + a2 * s(t1);
+    let x3 = x2 + a3 * s(t1 + t2);
+    let x4 = x3;
+    let x5 = x4 - d6 * s(p123);
+    let x6 = x5 + a6 * c(t4 + t0) * c(p123) * s(t5);
+    let x7 = x6 + d6 * s(p123);
+    let x8 = x7 + d3 * c(t4 + t0 + t7) * c(p123) * s(t5 + t6);
+    let y1 = y0 - a1 * s(t0);
+    let y2 = y1 - a2 * c(t1) * s(t0);
+    let y3 = y2 - a3 * c(t1 + t2) * s(t0);
+    let y4 = y3 + d3 * c(t0);
+    let y5 = y4 + d6 * s(t4 + t0);
+    let y6 = y5 + a6 * c(t4 + t0) * c(p123) * c(t5);
+    let y7 = y6 - d6 * s(t4 + t0);
+    let y8 = y7 + d3 * c(t4 + t0 + t7) * c(p123) * c(t5 + t6);
+    let z1 = z0 + a1 * c(t0);
+    let z2 = z1 + a2 * c(t1) * c(t0);
+    let z3 = z2 + a3 * c(t1 + t2) * c(t0);
+    let z4 = z3 + d3 * s(t0);
+    let z5 = z4 - d6 * c(t4 + t0) * c(p123);
+    let z6 = z5 + a6 * s(t4 + t0) * c(p123);
+    let z7 = z6 + d6 * c(t4 + t0) * c(p123);
+    let z8 = z7 + d3 * s(t4 + t0 + t7) * c(p123);
+    let (q8, r) = (p123 + t8, t4 + t0 + t7);
+    let (q9, q10) = (q8 + t9, q8 + t9 + t10);
+    let x9 = x8 + a9 * s(q8);
+    let x10 = x9 + a10 * s(q9);
+    let x11 = x10 + a11 * s(q10);
+    let x12 = x11 + a12 * s(q10);
+    let y9 = y8 + a9 * s(r) * c(q8);
+    let y10 = y9 + a10 * s(r) * c(q9);
+    let y11 = y10 + a11 * s(r) * c(q10);
+    let y12 = y11 + a12 * s(r + t11) * c(q10);
+    let z9 = z8 - a9 * c(r) * c(q8);
+    let z10 = z9 - a10 * c(r) * c(q9);
+    let z11 = z10 - a11 * c(r) * c(q10);
+    let z12 = z11 - a12 * c(r + t11) * c(q10);
+    [
+        [x0, y0, z0],
+        [x1, y1, z1],
+        [x2, y2, z2],
+        [x3, y3, z3],
+        [x4, y4, z4],
+        [x5, y5, z5],
+        [x6, y6, z6],
+        [x7, y7, z7],
+        [x8, y8, z8],
+        [x9, y9, z9],
+        [x10, y10, z10],
+        [x11, y11, z11],
+        [x12, y12, z12],
+    ]
+}
+
+/// The same points of the robot by this module's kinematics, for the script's angles: with
+/// the right sole on the ground (its frame the reference), the pelvis where the right leg
+/// holds it and the left leg hanging from it.
+pub fn exact_chain(links: &Links, theta: &[f64; 12]) -> [V3; 13] {
+    let (ql, qr) = from_script(theta);
+    let (sole_r, pr) = fk_points(links, Leg::Right, &qr);
+    let pelvis = sole_r.inv(); // the pelvis in the right sole's frame
+    let (_, pl) = fk_points(links, Leg::Left, &ql);
+    let w = |p: &V3| pelvis.apply(p);
+    let s = -1.0;
+    let r_hip = mul(&mul(&rz(qr[0]), &rx(qr[1])), &ry(qr[2]));
+    let top_r = crate::math::add(&pr[0], &mv(&r_hip, &[0.0, s * links.d3, 0.0]));
+    let l_hip = mul(&mul(&rz(ql[0]), &rx(ql[1])), &ry(ql[2]));
+    let top_l = crate::math::add(&pl[0], &mv(&l_hip, &[0.0, links.d3, 0.0]));
+    let bar_r = [0.0, -links.a6 / 2.0, 0.0];
+    let bar_l = [0.0, links.a6 / 2.0, 0.0];
+    [
+        w(&pr[3]),
+        w(&pr[2]),
+        w(&pr[1]),
+        w(&top_r),
+        w(&pr[0]),
+        w(&bar_r),
+        w(&bar_l),
+        w(&pl[0]),
+        w(&top_l),
+        w(&pl[1]),
+        w(&pl[2]),
+        w(&pl[3]),
+        w(&pl[4]),
+    ]
+}
+
+/// The geometric joint pattern's published equations, run as printed (off: the exact forms).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Faithful {
+    /// Eq 42's small-angle form of the hip roll, with `Stepping.sce`'s min(|θ01|, |θ02|).
+    pub eq_42: bool,
+}
+
+/// The joint pattern of one sample (eqs 41-54, as `Stepping.sce` runs them): the script's
+/// angles and the points it reports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PatternSample {
+    /// θ0..θ11, rad (θ9 and θ10 wrapped to (−π, π]).
+    pub theta: [f64; 12],
+    /// The pelvis centre's y (the script's y61), m.
+    pub hip_y: f64,
+    /// The right hip joint's height (z4), m.
+    pub z_hip: f64,
+    /// hn1 of eq 46, m.
+    pub hn1: f64,
+}
+
+/// The hip roll of eq 41 in closed form, in the script's sign: exact (the small root of
+/// k2 t² + 2 k1 t + k3 = 0 with t = tan(θ0/2), in a form without the printed formula's
+/// division by k2), or as eq 42 prints it with the script's min(|θ01|, |θ02|).
+pub fn hip_roll(k1: f64, k2: f64, k3: f64, faithful: Faithful) -> Result<f64, KinError> {
+    let disc = k1 * k1 - k2 * k3;
+    if !(disc >= 0.0) {
+        return Err(KinError::Unreachable(format!(
+            "eq 42: no hip roll puts the COM there (k1² − k2 k3 = {disc:.3e} < 0)"
+        )));
+    }
+    if faithful.eq_42 {
+        if k2 == 0.0 {
+            return Err(KinError::Singular(
+                "eq 42 divides by k2 = 0 (the COM at a6/2 − d3 from the ankle)".into(),
+            ));
+        }
+        let root = (4.0 * disc).sqrt();
+        let th01 = (2.0 * ((2.0 * k1 + root) / (2.0 * k2))).atan();
+        let th02 = (2.0 * ((2.0 * k1 - root) / (2.0 * k2))).atan();
+        Ok(th01.abs().min(th02.abs()))
+    } else {
+        let t = -k3 / (k1 + k1.signum() * disc.sqrt());
+        // Eq 41's own sign is the script's negated.
+        Ok(-2.0 * t.atan())
+    }
+}
+
+/// The joint pattern for the pelvis centre ΔX ahead of and ΔY beside the right (support)
+/// ankle (m): support leg by eqs 41-43 (knee straight, pelvis upright), swing leg by eqs
+/// 44-52 (foot flat, ΔX ahead), as `Stepping.sce` computes them.
+pub fn joint_pattern(
+    links: &Links,
+    dx: f64,
+    dy: f64,
+    faithful: Faithful,
+) -> Result<PatternSample, KinError> {
+    links.check()?;
+    let reach = links.a2 + links.a3;
+    if !(dx.is_finite() && dy.is_finite()) || dx.abs() > reach {
+        return Err(KinError::Unreachable(format!(
+            "the pattern's COM {dx} m ahead is beyond the leg's {reach} m"
+        )));
+    }
+    let th1 = (dx / reach).asin();
+    let k1 = links.a1 + reach * th1.cos();
+    let k2 = links.a6 / 2.0 - links.d3 - dy;
+    let k3 = links.d3 + links.a6 / 2.0 - dy;
+    let th0 = hip_roll(k1, k2, k3, faithful)?;
+    let mut theta = [0.0; 12];
+    theta[0] = th0;
+    theta[1] = th1;
+    theta[3] = -th1;
+    theta[4] = -th0;
+    let pts = scilab_chain(links, &theta);
+    let (y8, z8) = (pts[8][1], pts[8][2]);
+    let hn1 = z8 - y8 * (2.0 * th0).tan() - links.a1 - links.sole;
+    let r2 = dx * dx + hn1 * hn1;
+    let r = r2.sqrt();
+    let (a9, a10) = (links.a3, links.a2);
+    let cg = snap((a9 * a9 + a10 * a10 - r2) / (2.0 * a9 * a10));
+    let c8 = snap((a9 * a9 + r2 - a10 * a10) / (2.0 * a9 * r));
+    if !((-1.0..=1.0).contains(&cg) && (-1.0..=1.0).contains(&c8)) || hn1 == 0.0 {
+        return Err(KinError::Unreachable(format!(
+            "eqs 47-50: the swing foot {r:.4} m from the hip is out of the leg's reach"
+        )));
+    }
+    let gamma = -cg.acos();
+    theta[9] = wrap(std::f64::consts::PI - gamma);
+    theta[8] = c8.acos() + (dx / hn1).atan();
+    theta[10] = wrap(-(theta[9] + theta[8]));
+    let p123 = theta[1] + theta[2] + theta[3];
+    let hip_y =
+        pts[5][1] + (links.a6 / 2.0) * (theta[4] + theta[0]).cos() * p123.cos() * theta[5].cos();
+    Ok(PatternSample {
+        theta,
+        hip_y,
+        z_hip: pts[4][2],
+        hn1,
+    })
+}
+
+/// Eq 41's residual for a support leg's hip roll (script sign) and ankle pitch: its y_COM
+/// less `dy`, m.
+pub fn eq_41_residual(links: &Links, th0_script: f64, th1: f64, dy: f64) -> f64 {
+    let th0 = -th0_script;
+    (links.a1 + (links.a2 + links.a3) * th1.cos()) * th0.sin()
+        + links.d3 * th0.cos()
+        + links.a6 / 2.0
+        - dy
+}
+
+/// A sole's pose from its frame's heading and place (level).
+pub fn level(p: V3, yaw: f64) -> Pose {
+    Pose::yawed(p, yaw)
+}
+
+/// What drives a joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Motor {
+    /// A Maxon EC 45 flat on a 160:1 harmonic drive.
+    Brushless,
+    /// The brushed motor on a 415:1 planetary gear.
+    Brushed,
+}
+
+/// One joint's limits (the same on both legs).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointSpec {
+    /// One of [`JOINTS`].
+    pub name: String,
+    /// Lowest angle, rad.
+    pub min: f64,
+    /// Highest angle, rad.
+    pub max: f64,
+    /// Top speed, rad/s.
+    pub max_velocity: f64,
+    /// Top acceleration, rad/s².
+    pub max_acceleration: f64,
+    /// What drives it.
+    pub motor: Motor,
+}
+
+/// The sole the ZMP must stay on, and where its centre is.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FootSpec {
+    /// Along the foot, m.
+    pub length: f64,
+    /// Across the foot, m.
+    pub width: f64,
+    /// The sole's centre ahead of the ankle, m.
+    pub centre_ahead: f64,
+}
+
+/// Point masses, kg: the pelvis's at its centre, each leg link's at its middle (the foot's
+/// at the ankle roll axis).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Masses {
+    /// The pelvis with the trunk and what it carries.
+    pub pelvis: f64,
+    /// One thigh.
+    pub thigh: f64,
+    /// One shank.
+    pub shank: f64,
+    /// One foot with the ankle's drives.
+    pub foot: f64,
+}
+
+impl Masses {
+    /// The robot's mass.
+    pub fn total(&self) -> f64 {
+        self.pelvis + 2.0 * (self.thigh + self.shank + self.foot)
+    }
+}
+
+/// Archie's robot file (`config/robots/archie.toml`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArchieConfig {
+    /// The legs' dimensions.
+    pub links: Links,
+    /// The six joints' limits, in [`JOINTS`] order.
+    pub joint: Vec<JointSpec>,
+    /// The sole.
+    pub foot: FootSpec,
+    /// The masses.
+    pub mass: Masses,
+    /// Published equations run as printed.
+    #[serde(default)]
+    pub faithful: Faithful,
+}
+
+impl ArchieConfig {
+    /// Reads and checks a robot file.
+    pub fn load(path: &std::path::Path) -> Result<ArchieConfig, KinError> {
+        let cfg: ArchieConfig = crate::read_toml(path)?;
+        cfg.check()?;
+        Ok(cfg)
+    }
+
+    /// Parses and checks a robot file's text.
+    pub fn from_toml(text: &str) -> Result<ArchieConfig, KinError> {
+        let cfg: ArchieConfig =
+            toml::from_str(text).map_err(|e| KinError::Config(e.to_string()))?;
+        cfg.check()?;
+        Ok(cfg)
+    }
+
+    /// Checks the file: the links, the six joints in order with ordered, finite limits and
+    /// positive speeds, a sole and masses of positive size.
+    pub fn check(&self) -> Result<(), KinError> {
+        self.links.check()?;
+        let names: Vec<&str> = self.joint.iter().map(|j| j.name.as_str()).collect();
+        if names != JOINTS {
+            return Err(KinError::Config(format!(
+                "Archie's joints must be {JOINTS:?} in that order, not {names:?}"
+            )));
+        }
+        for j in &self.joint {
+            let ok = j.min.is_finite()
+                && j.max.is_finite()
+                && j.min < j.max
+                && j.max_velocity.is_finite()
+                && j.max_velocity > 0.0
+                && j.max_acceleration.is_finite()
+                && j.max_acceleration > 0.0;
+            if !ok {
+                return Err(KinError::Config(format!(
+                    "joint {}: ordered finite limits and a positive speed and acceleration",
+                    j.name
+                )));
+            }
+        }
+        let f = &self.foot;
+        let m = &self.mass;
+        if !(f.length > 0.0 && f.width > 0.0 && f.centre_ahead.is_finite())
+            || ![m.pelvis, m.thigh, m.shank, m.foot]
+                .iter()
+                .all(|v| v.is_finite() && *v >= 0.0)
+            || !(m.total() > 0.0)
+        {
+            return Err(KinError::Config(
+                "a sole of positive size and masses that are not negative".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The joints' names on `leg`, e.g. "left_knee".
+    pub fn names(&self, leg: Leg) -> [String; 6] {
+        std::array::from_fn(|k| format!("{}_{}", leg.name(), JOINTS[k]))
+    }
+
+    /// Checks joint angles against the position limits.
+    pub fn check_q(&self, leg: Leg, q: &Q) -> Result<(), KinError> {
+        for (k, (v, j)) in q.iter().zip(&self.joint).enumerate() {
+            if !(j.min..=j.max).contains(v) {
+                return Err(KinError::Limit {
+                    joint: format!("{}_{}", leg.name(), JOINTS[k]),
+                    value: v.to_degrees(),
+                    min: j.min.to_degrees(),
+                    max: j.max.to_degrees(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The sole frame's pose (below the ankle) of a foot whose sole centre is at `centre`
+    /// with heading `yaw`, on level ground.
+    pub fn sole_frame(&self, centre: V3, yaw: f64) -> Pose {
+        let (s, c) = yaw.sin_cos();
+        let b = self.foot.centre_ahead;
+        Pose::yawed([centre[0] - c * b, centre[1] - s * b, centre[2]], yaw)
+    }
+}
