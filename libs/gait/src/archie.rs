@@ -41,7 +41,7 @@ impl Default for HeightConfig {
             step_length: 0.25,
             stance_width: 0.2,
             knee_min: 0.2,
-            margin: 0.02,
+            margin: 0.01,
         }
     }
 }
@@ -68,17 +68,12 @@ pub struct LegRows {
 pub struct JointPlan {
     /// Seconds from the pattern's start to each row.
     pub times: Vec<f64>,
+    /// The pelvis at each row (world frame).
+    pub pelvis: Vec<Pose>,
     /// The left leg.
     pub left: LegRows,
     /// The right leg.
     pub right: LegRows,
-}
-
-/// The pelvis's pose at a pattern's sample: the COM's place at `z_c` above the ground,
-/// upright, headed between the feet.
-pub fn pelvis(com: P2, z: f64, feet: &[Place; 2]) -> Pose {
-    let (s, c) = (feet[0][3].sin() + feet[1][3].sin(), feet[0][3].cos() + feet[1][3].cos());
-    Pose::yawed([com[0], com[1], z], s.atan2(c))
 }
 
 /// Archie's joints over patterns.
@@ -90,34 +85,139 @@ pub struct ArchieGait {
     pub z_c: f64,
     /// Between rows, s.
     pub row_period: f64,
+    /// The pattern's COM is the whole robot's (the pelvis placed so that the point masses'
+    /// centre follows it); otherwise the pelvis centre's (the thesis's "joint 6 is the COM").
+    pub whole_body: bool,
+    /// Whole body: the pelvis's place less the COM's standing, the first guess of [`place`].
+    ///
+    /// [`place`]: ArchieGait::place
+    pub offset: V3,
 }
 
 impl ArchieGait {
-    /// The joints of both legs for a pelvis pose and two soles (their centres' places).
+    /// The gait of `robot` with the COM height from its legs ([`default_z_c`]): the pelvis
+    /// centre's height, or (`whole_body`) the whole robot's COM's standing with its pelvis
+    /// there.
+    pub fn new(robot: ArchieConfig, height: &HeightConfig, row_period: f64, whole_body: bool) -> ArchieGait {
+        let pelvis_z = default_z_c(&robot, height);
+        let mut g = ArchieGait {
+            robot,
+            z_c: pelvis_z,
+            row_period,
+            whole_body: false,
+            offset: [0.0; 3],
+        };
+        if whole_body {
+            let w = height.stance_width / 2.0;
+            let feet = [[0.0, w, 0.0, 0.0], [0.0, -w, 0.0, 0.0]];
+            let pelvis = Pose::at([0.0, 0.0, pelvis_z]);
+            if let Ok(q) = g.solve(&pelvis, &feet, &[[0.0, 0.0, 0.0, 0.3, -0.15, 0.0]; 2]) {
+                let com = g.com_of(&pelvis, &q);
+                g.z_c = com[2];
+                g.offset = [-com[0], -com[1], pelvis_z - com[2]];
+            }
+            g.whole_body = true;
+        }
+        g
+    }
+
+    /// The whole robot's centre of mass for a pelvis pose and the legs' joints.
+    pub fn com_of(&self, pelvis: &Pose, q: &[Q; 2]) -> V3 {
+        let m = &self.robot.mass;
+        let mut sum = [0.0; 3];
+        let mut add = |mass: f64, p: V3| {
+            for d in 0..3 {
+                sum[d] += mass * p[d];
+            }
+        };
+        add(m.pelvis, pelvis.p);
+        for (leg, q) in [(Leg::Left, &q[0]), (Leg::Right, &q[1])] {
+            let (_, p) = archie::fk_points(&self.robot.links, leg, q);
+            let w = |a: &V3| pelvis.apply(a);
+            let mid = |a: &V3, b: &V3| w(&[(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0, (a[2] + b[2]) / 2.0]);
+            add(m.thigh, mid(&p[0], &p[1]));
+            add(m.shank, mid(&p[1], &p[2]));
+            add(m.foot, w(&p[3]));
+        }
+        let total = m.total();
+        sum.map(|v| v / total)
+    }
+
+    /// The pelvis and joints that put the COM at `com` (world) with the feet at `feet`: the
+    /// pelvis centre there, or (whole body) the pelvis moved until the point masses' centre
+    /// is there to 0.01 mm (`offset`: the pelvis's place less the COM's, kept from row to row).
+    fn place(
+        &self,
+        com: V3,
+        yaw: f64,
+        feet: &[Place; 2],
+        near: &[Q; 2],
+        offset: &mut V3,
+    ) -> Result<(Pose, [Q; 2]), GaitError> {
+        if !self.whole_body {
+            let pelvis = Pose::yawed(com, yaw);
+            let q = self.solve(&pelvis, feet, near)?;
+            return Ok((pelvis, q));
+        }
+        let mut q = *near;
+        for _ in 0..20 {
+            let pelvis = Pose::yawed(
+                [com[0] + offset[0], com[1] + offset[1], com[2] + offset[2]],
+                yaw,
+            );
+            q = self.reach(&pelvis, feet, &q)?;
+            let now = self.com_of(&pelvis, &q);
+            let err = [com[0] - now[0], com[1] - now[1], com[2] - now[2]];
+            if err.iter().all(|e| e.abs() < 1e-5) {
+                let q = self.solve(&pelvis, feet, &q)?;
+                return Ok((pelvis, q));
+            }
+            for d in 0..3 {
+                offset[d] += err[d];
+            }
+        }
+        Err(GaitError::Plan(
+            "the pelvis that puts the whole robot's COM on the pattern was not found".into(),
+        ))
+    }
+
+    /// The joints of both legs for a pelvis pose and two soles (their centres' places),
+    /// checked against the joints' position limits.
     pub fn solve(&self, pelvis: &Pose, feet: &[Place; 2], near: &[Q; 2]) -> Result<[Q; 2], GaitError> {
+        let q = self.reach(pelvis, feet, near)?;
+        for (k, leg) in [Leg::Left, Leg::Right].into_iter().enumerate() {
+            self.robot
+                .check_q(leg, &q[k])
+                .map_err(|e| GaitError::Plan(e.to_string()))?;
+        }
+        Ok(q)
+    }
+
+    /// [`ArchieGait::solve`] without the limits.
+    fn reach(&self, pelvis: &Pose, feet: &[Place; 2], near: &[Q; 2]) -> Result<[Q; 2], GaitError> {
         let mut out = [[0.0; 6]; 2];
+        let inv = pelvis.inv();
         for (k, leg) in [Leg::Left, Leg::Right].into_iter().enumerate() {
             let f = feet[k];
-            let sole = pelvis
-                .inv()
-                .then(&self.robot.sole_frame([f[0], f[1], f[2]], f[3]));
-            let q = archie::solve(&self.robot.links, leg, &sole, &near[k])
+            let sole = inv.then(&self.robot.sole_frame([f[0], f[1], f[2]], f[3]));
+            out[k] = archie::solve(&self.robot.links, leg, &sole, &near[k])
                 .map_err(|e| GaitError::Plan(e.to_string()))?;
-            self.robot
-                .check_q(leg, &q)
-                .map_err(|e| GaitError::Plan(e.to_string()))?;
-            out[k] = q;
         }
         Ok(out)
     }
 
-    /// The pelvis at a pattern's sample: the COM at z_c above the ground under it (the feet's
-    /// ground heights, the support's in single support).
-    pub fn pelvis_at(&self, pat: &Pattern, k: usize) -> Pose {
+    /// The pattern's COM at a sample (z_c above the ground under it: the feet's ground
+    /// heights, the support's in single support) and the pelvis's heading (between the feet).
+    pub fn com_at(&self, pat: &Pattern, k: usize) -> (V3, f64) {
         let s = &pat.samples[k];
         let ground = pat.timeline.ground(s.t);
         let feet = [s.feet[0][0], s.feet[1][0]];
-        pelvis(s.com.com()[0], self.z_c + ground, &feet)
+        let c = s.com.com()[0];
+        let (sy, cy) = (
+            feet[0][3].sin() + feet[1][3].sin(),
+            feet[0][3].cos() + feet[1][3].cos(),
+        );
+        ([c[0], c[1], self.z_c + ground], sy.atan2(cy))
     }
 
     /// The joint trajectories of a pattern, checked (see the module).
@@ -125,16 +225,20 @@ impl ArchieGait {
         let stride = ((self.row_period / pat.dt).round() as usize).max(1);
         let ks: Vec<usize> = (0..pat.samples.len()).step_by(stride).collect();
         let mut near = [[0.0, 0.0, 0.0, 0.3, -0.15, 0.0]; 2];
+        let mut offset = self.offset;
         let mut pos: Vec<[Q; 2]> = Vec::with_capacity(ks.len());
+        let mut pelvises = Vec::with_capacity(ks.len());
         let mut times = Vec::with_capacity(ks.len());
         for &k in &ks {
             let s = &pat.samples[k];
             let feet = [s.feet[0][0], s.feet[1][0]];
-            let q = self
-                .solve(&self.pelvis_at(pat, k), &feet, &near)
+            let (com, yaw) = self.com_at(pat, k);
+            let (pelvis, q) = self
+                .place(com, yaw, &feet, &near, &mut offset)
                 .map_err(|e| GaitError::Plan(format!("at {:.3} s: {e}", s.t - pat.timeline.start)))?;
             near = q;
             pos.push(q);
+            pelvises.push(pelvis);
             times.push(s.t - pat.timeline.start);
         }
         // Velocities: central differences, at rest at both ends of a pattern that starts and
@@ -152,6 +256,7 @@ impl ArchieGait {
             .collect();
         let plan = JointPlan {
             times,
+            pelvis: pelvises,
             left: LegRows {
                 names: self.robot.names(Leg::Left),
                 positions: pos.iter().map(|q| q[0]).collect(),
@@ -200,18 +305,16 @@ impl ArchieGait {
         Ok(())
     }
 
-    /// The multibody ZMP of a joint plan (pelvis poses from the pattern's samples at the
-    /// rows): the point masses of the robot file placed by forward kinematics (the pelvis's
-    /// at its centre, a thigh's and a shank's at their middles, a foot's at the ankle roll
-    /// axis), their accelerations by second differences, and p = Σ m (x (z̈ + g) − z ẍ) /
-    /// Σ m (z̈ + g) (the links' own rotational inertia left out). One point a row, the first
-    /// and last rows' at rest.
-    pub fn multibody_zmp(&self, pat: &Pattern, plan: &JointPlan, g: f64) -> Vec<P2> {
-        let stride = ((self.row_period / pat.dt).round() as usize).max(1);
+    /// The multibody ZMP of a joint plan: the point masses of the robot file placed by
+    /// forward kinematics (the pelvis's at its centre, a thigh's and a shank's at their
+    /// middles, a foot's at the ankle roll axis), their accelerations by second differences,
+    /// and p = Σ m (x (z̈ + g) − z ẍ) / Σ m (z̈ + g) (the links' own rotational inertia left
+    /// out). One point a row, the first and last rows' at rest.
+    pub fn multibody_zmp(&self, plan: &JointPlan, g: f64) -> Vec<P2> {
         let m = &self.robot.mass;
         let masses: Vec<Vec<(f64, V3)>> = (0..plan.times.len())
             .map(|i| {
-                let pelvis = self.pelvis_at(pat, i * stride);
+                let pelvis = plan.pelvis[i];
                 let mut pts = vec![(m.pelvis, pelvis.p)];
                 for (leg, rows) in [(Leg::Left, &plan.left), (Leg::Right, &plan.right)] {
                     let (_, p) = archie::fk_points(&self.robot.links, leg, &rows.positions[i]);

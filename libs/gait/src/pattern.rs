@@ -229,7 +229,7 @@ impl Pattern {
                 zmp_from: if i == 0 {
                     tl.zmp_start
                 } else {
-                    xy(&tl.steps[i - 1].support)
+                    tl.zmp_point(&tl.steps[i - 1].support)
                 },
             }
         });
@@ -298,6 +298,23 @@ impl Generator {
     /// The parameters.
     pub fn config(&self) -> &PatternConfig {
         &self.cfg
+    }
+
+    /// Standing still with the feet at `left` and `right`: the COM at rest over the midpoint
+    /// of their ZMP points (see [`TimingConfig::zmp_ahead`]).
+    pub fn standing(&self, t: f64, left: Place, right: Place) -> Start {
+        let a = self.cfg.timing.zmp_ahead;
+        let point = |p: &Place| {
+            let (s, c) = p[3].sin_cos();
+            [p[0] + c * a, p[1] + s * a]
+        };
+        let (l, r) = (point(&left), point(&right));
+        let m = [(l[0] + r[0]) / 2.0, (l[1] + r[1]) / 2.0];
+        Start {
+            com: ComState::at_rest(m),
+            zmp_ref: m,
+            ..Start::standing(t, left, right)
+        }
     }
 
     /// The preview controller.
@@ -390,7 +407,7 @@ impl Generator {
         after[k] = target.place;
         let mut t = Timeline::new(
             first.land,
-            xy(&support),
+            [0.0, 0.0],
             after,
             rest,
             rest_durations,
@@ -398,6 +415,7 @@ impl Generator {
             &self.cfg.swing,
             false,
         )?;
+        let _ = t.zmp_start;
         t.start = start.t;
         t.zmp_start = uw.zmp_from;
         t.feet_start = feet;
@@ -513,9 +531,11 @@ impl Generator {
         let mut feet = full.timeline.feet_start;
         feet[first.footstep.side.index()] = first.footstep.place;
         // The pendulum's supports: the first step's foot, then the plan's footsteps.
+        // The pendulum's feet are the soles' ZMP points.
         let p0 = first.footstep.place;
-        let mut nominal: Vec<(P2, f64)> = vec![(xy(&p0), p0[3])];
-        nominal.extend(steps[1..].iter().map(|f| (xy(&f.place), f.place[3])));
+        let zp = |p: &Place| full.timeline.zmp_point(p);
+        let mut nominal: Vec<(P2, f64)> = vec![(zp(&p0), p0[3])];
+        nominal.extend(steps[1..].iter().map(|f| (zp(&f.place), f.place[3])));
         let initial = State {
             x: [at1.x.x[0], at1.y.x[0]],
             v: [at1.x.x[1], at1.y.x[1]],
@@ -524,7 +544,13 @@ impl Generator {
         let mut placed_steps = Vec::with_capacity(steps.len() - 1);
         let mut placed = Vec::with_capacity(steps.len() - 1);
         for (f, s) in steps[1..].iter().zip(&supports[1..]) {
-            let d = (s.foot[0] - f.place[0]).hypot(s.foot[1] - f.place[1]);
+            // The sole whose ZMP point the pendulum's foot is.
+            let z = zp(&f.place);
+            let foot = [
+                f.place[0] + s.foot[0] - z[0],
+                f.place[1] + s.foot[1] - z[1],
+            ];
+            let d = (foot[0] - f.place[0]).hypot(foot[1] - f.place[1]);
             if !(d <= self.cfg.placement.max_displacement) {
                 return Err(GaitError::Plan(format!(
                     "step {}: the modified foot placement moves it {d:.3} m from the plan \
@@ -533,11 +559,11 @@ impl Generator {
                 )));
             }
             let mut g = *f;
-            g.place[0] = s.foot[0];
-            g.place[1] = s.foot[1];
+            g.place[0] = foot[0];
+            g.place[1] = foot[1];
             g.duration = t_sup;
             placed_steps.push(g);
-            placed.push((*f, s.foot));
+            placed.push((*f, foot));
         }
         // The placed steps: single supports only (the swing takes the whole period).
         let timing = TimingConfig {
@@ -546,7 +572,7 @@ impl Generator {
         };
         let walk_tl = Timeline::new(
             t1,
-            xy(&p0),
+            zp(&p0),
             feet,
             &placed_steps,
             &vec![t_sup; placed_steps.len()],
@@ -563,7 +589,8 @@ impl Generator {
         let k_walk = (t_sup * (placed_steps.len() + 1) as f64 / dt).round() as usize;
         for k in 0..k_walk {
             let t = t1 + k as f64 * dt;
-            let n = (((t - t1) / t_sup).floor() as usize).min(supports.len() - 1);
+            // (The timeline's supports change at the same instants, to rounding.)
+            let n = (((t - t1) / t_sup + 1e-9).floor() as usize).min(supports.len() - 1);
             let [pos, vel, acc] = supports[n].at(p, t - t1 - n as f64 * t_sup);
             let com = ComState {
                 x: Cart {

@@ -208,14 +208,16 @@ pub struct SwingConfig {
 }
 
 impl Default for SwingConfig {
-    /// Up nearly straight, over, down nearly straight; 3 cm above what it clears.
+    /// A minimum-jerk-like path (the via points where a minimum-jerk motion of each axis is
+    /// at a quarter, half and three quarters of its time: the least acceleration); 3 cm above
+    /// what it clears.
     fn default() -> SwingConfig {
         SwingConfig {
             via: [
                 Via {
                     time: 0.25,
                     along: 0.1,
-                    height: 0.9,
+                    height: 0.5,
                 },
                 Via {
                     time: 0.5,
@@ -225,7 +227,7 @@ impl Default for SwingConfig {
                 Via {
                     time: 0.75,
                     along: 0.9,
-                    height: 0.9,
+                    height: 0.5,
                 },
             ],
             clearance: 0.03,

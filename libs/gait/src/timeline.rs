@@ -81,19 +81,24 @@ pub struct TimingConfig {
     pub lead: f64,
     /// ... and shifts the ZMP reference to the first support foot over at least this long, s.
     pub start_shift: f64,
+    /// Where on a sole the ZMP reference stands: this far ahead of its centre, m (a foot whose
+    /// ankle is well behind the sole's centre stands easier with the ZMP nearer the ankle).
+    #[serde(default)]
+    pub zmp_ahead: f64,
 }
 
 impl Default for TimingConfig {
     fn default() -> TimingConfig {
         TimingConfig {
-            t_min: 0.8,
-            t_max: 1.6,
-            speed: 0.4,
+            t_min: 1.0,
+            t_max: 2.0,
+            speed: 0.3,
             double_support: 0.25,
             settle: 0.8,
             rest: 1.0,
             lead: 1.0,
             start_shift: 0.8,
+            zmp_ahead: 0.0,
         }
     }
 }
@@ -115,7 +120,8 @@ impl TimingConfig {
             && self.lead.is_finite()
             && self.lead >= 0.0
             && self.start_shift.is_finite()
-            && self.start_shift >= 0.0;
+            && self.start_shift >= 0.0
+            && self.zmp_ahead.is_finite();
         if ok {
             Ok(())
         } else {
@@ -166,8 +172,10 @@ pub struct Timeline {
     pub feet_end: [Place; 2],
     /// When the final double support ends.
     pub settled: f64,
-    /// Where the ZMP reference ends (None: the feet's midpoint).
+    /// Where the ZMP reference ends (None: the midpoint of the feet's ZMP points).
     pub hold: Option<P2>,
+    /// The ZMP reference's point on a sole, ahead of its centre, m.
+    pub zmp_ahead: f64,
     /// With no steps: when the reference starts moving to its end (it reaches it at
     /// `settled`).
     pub shift_from: f64,
@@ -184,9 +192,6 @@ fn lerp(a: P2, b: P2, s: f64) -> P2 {
     [a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1])]
 }
 
-fn mid(a: &Place, b: &Place) -> P2 {
-    lerp(xy(a), xy(b), 0.5)
-}
 
 /// What the feet do at an instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -279,6 +284,7 @@ impl Timeline {
             feet_end: now,
             settled: settled + lead,
             hold: None,
+            zmp_ahead: timing.zmp_ahead,
             shift_from: start + lead,
             end: settled + lead + timing.rest,
         })
@@ -309,10 +315,18 @@ impl Timeline {
         }
     }
 
+    /// The ZMP reference's point on a foot's sole.
+    pub fn zmp_point(&self, p: &Place) -> P2 {
+        let (s, c) = p[3].sin_cos();
+        [p[0] + c * self.zmp_ahead, p[1] + s * self.zmp_ahead]
+    }
+
     /// Where the ZMP reference ends.
     pub fn zmp_end(&self) -> P2 {
         self.hold
-            .unwrap_or_else(|| mid(&self.feet_end[0], &self.feet_end[1]))
+            .unwrap_or_else(|| {
+                lerp(self.zmp_point(&self.feet_end[0]), self.zmp_point(&self.feet_end[1]), 0.5)
+            })
     }
 
     /// The ZMP reference at `t`.
@@ -331,18 +345,18 @@ impl Timeline {
         let last = self.steps.last().unwrap();
         if t >= last.land {
             let s = ((t - last.land) / (self.settled - last.land)).clamp(0.0, 1.0);
-            return lerp(xy(&last.support), self.zmp_end(), s);
+            return lerp(self.zmp_point(&last.support), self.zmp_end(), s);
         }
         let i = self.steps.partition_point(|s| s.start <= t).max(1) - 1;
         let s = &self.steps[i];
-        let to = xy(&s.support);
+        let to = self.zmp_point(&s.support);
         if t >= s.lift {
             return to;
         }
         let from = if i == 0 {
             self.zmp_start
         } else {
-            xy(&self.steps[i - 1].support)
+            self.zmp_point(&self.steps[i - 1].support)
         };
         lerp(from, to, (t - s.start) / (s.lift - s.start))
     }

@@ -15,7 +15,7 @@ use stride_gait::GaitError;
 fn walk(kind: Kind, n: usize, length: f64) -> (Generator, stride_gait::pattern::Pattern) {
     let g = generator(kind);
     let (l, r) = standing();
-    let p = g.plan(&Start::standing(0.0, l, r), &straight(n, length, 1)).unwrap();
+    let p = g.plan(&g.standing(0.0, l, r), &straight(n, length, 1)).unwrap();
     (g, p)
 }
 
@@ -41,15 +41,18 @@ fn the_preview_controller_tracks_a_step_of_its_reference() {
 #[test]
 fn a_straight_walk_keeps_the_zmp_a_centimetre_inside_its_soles() {
     for kind in [Kind::Preview, Kind::FootPlacement] {
-        let (_, p) = walk(kind, 8, 0.2);
+        let mut cfg = config(kind);
+        cfg.placement.max_displacement = 0.25;
+        let g = Generator::new(cfg).unwrap();
+        let (l, r) = standing();
+        let p = g.plan(&g.standing(0.0, l, r), &straight(8, 0.2, 1)).unwrap();
         let (m, t) = p.min_margin();
         assert!(m >= 0.01, "{kind:?}: margin {m} at {t}");
         // It ends standing still between the feet.
         let last = p.samples.last().unwrap();
         let com = last.com.com();
         assert!(com[1][0].abs() < 5e-3 && com[1][1].abs() < 5e-3, "{kind:?}: {com:?}");
-        let feet = p.timeline.feet_end;
-        let mid = [(feet[0][0] + feet[1][0]) / 2.0, (feet[0][1] + feet[1][1]) / 2.0];
+        let mid = p.timeline.zmp_end();
         assert!(
             (com[0][0] - mid[0]).abs() < 0.01 && (com[0][1] - mid[1]).abs() < 0.01,
             "{kind:?}: {com:?}"
@@ -59,13 +62,32 @@ fn a_straight_walk_keeps_the_zmp_a_centimetre_inside_its_soles() {
 }
 
 #[test]
-fn the_foot_placement_generator_moves_footsteps_a_little() {
-    let (_, p) = walk(Kind::FootPlacement, 8, 0.2);
-    assert_eq!(p.placed.len(), 7);
-    for (f, at) in &p.placed {
-        let d = (at[0] - f.place[0]).hypot(at[1] - f.place[1]);
-        assert!(d <= 0.05, "step {}: {d}", f.number);
+fn the_foot_placement_generator_settles_onto_the_plans_footsteps() {
+    // From standing the pendulum takes over the preview controller's walk at the second
+    // step's lift-off; off its periodic motion there, Kajita's algorithm moves the first
+    // footsteps it places (about 0.2 m with T_sup = 1 s), then converges onto the plan. The
+    // default displacement limit (5 cm) refuses that; here it is opened.
+    let mut cfg = config(Kind::FootPlacement);
+    let g = Generator::new(cfg).unwrap();
+    let (l, r) = standing();
+    let start = g.standing(0.0, l, r);
+    match g.plan(&start, &straight(10, 0.2, 1)) {
+        Err(GaitError::Plan(m)) => assert!(m.contains("modified foot placement moves it"), "{m}"),
+        Err(e) => panic!("{e}"),
+        Ok(_) => panic!("a 0.2 m placement taken with a 5 cm limit"),
     }
+    cfg.placement.max_displacement = 0.25;
+    let g = Generator::new(cfg).unwrap();
+    let p = g.plan(&start, &straight(10, 0.2, 1)).unwrap();
+    let d: Vec<f64> = p
+        .placed
+        .iter()
+        .map(|(f, at)| (at[0] - f.place[0]).hypot(at[1] - f.place[1]))
+        .collect();
+    eprintln!("placements off the plan: {d:.3?}");
+    assert!(d.windows(2).take(4).all(|w| w[1] < w[0] / 2.0), "{d:?}");
+    assert!(d[3..].iter().all(|&x| x < 0.01), "{d:?}");
+    assert!(p.min_margin().0 >= 0.01);
 }
 
 /// The largest difference between two samples' COM states and feet.
@@ -110,9 +132,15 @@ fn a_plan_replaced_mid_swing_continues_the_com_and_the_swing_foot() {
     // At the switch: the same COM (position, velocity, acceleration) and feet, to 1e-9.
     let d = jump(&old.samples[k], &new.samples[0]);
     assert!(d < 1e-9, "{d:e}");
-    // And on: one period later both differ by what a period of jerk can make.
-    let d1 = jump(&old.samples[k + 1], &new.samples[1]);
-    assert!(d1 < 0.01, "{d1}");
+    // And on: one period later the COM and the feet are within a millimetre of where the
+    // old pattern had them (a period of a different jerk and swing acceleration).
+    let (a, b) = (&old.samples[k + 1], &new.samples[1]);
+    let (ca, cb) = (a.com.com()[0], b.com.com()[0]);
+    assert!((ca[0] - cb[0]).hypot(ca[1] - cb[1]) < 1e-3);
+    for f in 0..2 {
+        let (p, q) = (a.feet[f][0], b.feet[f][0]);
+        assert!((p[0] - q[0]).hypot(p[1] - q[1]).hypot(p[2] - q[2]) < 1e-3);
+    }
     // The swing lands where the new plan says, when the old one would have.
     let landed = new.timeline.steps[0].land;
     assert!((landed - sw.land).abs() < 1e-9);
@@ -140,7 +168,7 @@ fn a_plan_replaced_in_double_support_continues_the_com() {
 fn a_step_whose_zmp_fails_is_given_more_time_and_an_impossible_one_is_refused() {
     let g = generator(Kind::Preview);
     let (l, r) = standing();
-    let start = Start::standing(0.0, l, r);
+    let start = g.standing(0.0, l, r);
     // Long quick strides: at the shortest step time the ZMP would leave the sole's margin.
     let mut cfg = config(Kind::Preview);
     cfg.timing.t_min = 0.3;
@@ -206,15 +234,19 @@ fn swings_are_c2_hit_their_via_points_and_rest_at_both_ends() {
 
 #[test]
 fn archies_joints_follow_the_pattern_within_their_limits() {
-    let (_, p) = walk(Kind::Preview, 8, 0.2);
+    let (_, p) = walk(Kind::Preview, 8, 0.15);
     let a = archie();
     let plan = a.joints(&p).unwrap();
     assert_eq!(plan.left.positions.len(), plan.times.len());
     // Forward kinematics of the rows puts the feet where the pattern has them.
-    let mut worst: f64 = 0.0;
+    let (mut worst, mut worst_com): (f64, f64) = (0.0, 0.0);
     for (i, &t) in plan.times.iter().enumerate() {
         let k = p.index_at(p.timeline.start + t + 1e-9);
-        let pelvis = a.pelvis_at(&p, k);
+        let pelvis = plan.pelvis[i];
+        // The whole robot's COM on the pattern's.
+        let com = a.com_of(&pelvis, &[plan.left.positions[i], plan.right.positions[i]]);
+        let want = p.samples[k].com.com()[0];
+        worst_com = worst_com.max((com[0] - want[0]).hypot(com[1] - want[1]));
         for (leg, rows, f) in [
             (stride_kinematics::archie::Leg::Left, &plan.left, 0),
             (stride_kinematics::archie::Leg::Right, &plan.right, 1),
@@ -226,14 +258,15 @@ fn archies_joints_follow_the_pattern_within_their_limits() {
         }
     }
     assert!(worst < 1e-9, "{worst}");
+    assert!(worst_com < 2e-5, "{worst_com}");
 }
 
 #[test]
 fn the_multibody_zmp_agrees_with_the_cart_table_zmp() {
-    let (g, p) = walk(Kind::Preview, 8, 0.2);
+    let (g, p) = walk(Kind::Preview, 8, 0.15);
     let a = archie();
     let plan = a.joints(&p).unwrap();
-    let mb = a.multibody_zmp(&p, &plan, g.config().g);
+    let mb = a.multibody_zmp(&plan, g.config().g);
     let stride = (a.row_period / p.dt).round() as usize;
     let worst = mb
         .iter()
@@ -249,8 +282,11 @@ fn the_multibody_zmp_agrees_with_the_cart_table_zmp() {
 
 #[test]
 fn the_com_height_comes_from_the_legs_and_0_72_m_is_out_of_reach() {
+    // The pelvis centre stands at most 0.68 m high; the whole robot's COM, with the legs'
+    // mass below it, lower still.
     let z = common::z_c();
-    assert!(z > 0.5 && z < 0.66, "{z}");
+    assert!(z > 0.4 && z < 0.6, "{z}");
+    assert!(default_z_c(&common::robot(), &Default::default()) < 0.66);
     let mut a = archie();
     a.z_c = 0.72;
     let (_, p) = walk(Kind::Preview, 4, 0.2);

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use stride_gait::archie::{default_z_c, ArchieGait, HeightConfig};
+use stride_gait::archie::{ArchieGait, HeightConfig};
 use stride_gait::pattern::{Generator, Kind, PatternConfig, PlacementConfig};
 use stride_gait::preview::PreviewConfig;
 use stride_gait::support::Sole;
@@ -19,7 +19,7 @@ pub fn robot() -> ArchieConfig {
 }
 
 pub fn z_c() -> f64 {
-    default_z_c(&robot(), &HeightConfig::default())
+    archie().z_c
 }
 
 pub fn config(kind: Kind) -> PatternConfig {
@@ -30,8 +30,13 @@ pub fn config(kind: Kind) -> PatternConfig {
         g: 9.80665,
         preview: PreviewConfig::default(),
         placement: PlacementConfig::default(),
-        timing: TimingConfig::default(),
         swing: SwingConfig::default(),
+        // Archie's sole centre is 8 cm ahead of its ankle: the ZMP reference 3 cm ahead of
+        // the ankle keeps 6 cm of sole behind it and the shanks more upright.
+        timing: TimingConfig {
+            zmp_ahead: -0.05,
+            ..TimingConfig::default()
+        },
         sole: Sole {
             length: r.foot.length,
             width: r.foot.width,
@@ -44,12 +49,9 @@ pub fn generator(kind: Kind) -> Generator {
     Generator::new(config(kind)).unwrap()
 }
 
+/// Archie's gait: the whole robot's COM on the pattern, rows every 10 ms.
 pub fn archie() -> ArchieGait {
-    ArchieGait {
-        robot: robot(),
-        z_c: z_c(),
-        row_period: 0.01,
-    }
+    ArchieGait::new(robot(), &HeightConfig::default(), 0.01, true)
 }
 
 /// The feet standing at x = 0, 0.2 m apart: left, right.
