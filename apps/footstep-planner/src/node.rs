@@ -171,14 +171,16 @@ pub fn plan_request(
     if req.goal_tolerance < 0.0 || req.goal_yaw_tolerance < 0.0 || req.max_expansions < 0 {
         return refuse("a tolerance or the expansion cap is negative".into());
     }
-    let (mut horizon, mut corridor) = (None, None);
+    let (mut horizon, mut corridor, mut max_step) = (None, None, None);
     for (name, value) in req.param_names.iter().zip(&req.param_values) {
         match name.as_str() {
             "horizon" if *value >= 1.0 => horizon = Some(*value as usize),
             "corridor" if *value > 0.0 => corridor = Some(*value),
+            "max_step" if (0.05..=0.5).contains(value) => max_step = Some(*value),
             _ => {
                 return refuse(format!(
-                    "parameter {name} = {value} is not known (horizon >= 1 steps, corridor > 0 m)"
+                    "parameter {name} = {value} is not known (horizon >= 1 steps, corridor > 0 \
+                     m, max_step 0.05 to 0.5 m)"
                 ))
             }
         }
@@ -205,6 +207,7 @@ pub fn plan_request(
         max_expansions: (req.max_expansions > 0).then_some(req.max_expansions as u64),
         corridor,
         inflation: None,
+        max_step,
     };
     let budget = if req.max_time_us > 0 {
         Duration::from_micros(req.max_time_us as u64)

@@ -143,11 +143,8 @@ pub fn over(x: f64, limit: f64) -> bool {
 /// within.
 pub fn beyond(e: &Extremes, acc: (f64, f64), b: &Bounds, t0: f64) -> Option<String> {
     if !(e.p_min.0 >= b.min - 1e-12 && e.p_max.0 <= b.max + 1e-12) {
-        let (p, dt) = if !(e.p_min.0 >= b.min - 1e-12) {
-            e.p_min
-        } else {
-            e.p_max
-        };
+        let low = e.p_min.0.is_nan() || e.p_min.0 < b.min - 1e-12;
+        let (p, dt) = if low { e.p_min } else { e.p_max };
         return Some(format!(
             "position {p:.4} rad at {:.3} s outside [{}, {}]",
             t0 + dt,

@@ -52,6 +52,9 @@ pub struct Request {
     /// Archie's planner: the growth of the obstacles (m), if not its mode's own (the improved
     /// search on the thesis's growth compares the searches alone).
     pub inflation: Option<f64>,
+    /// Archie's planner: the longest advance per step (m), if not the thesis's 0.3 m (the
+    /// walking controller's own limit).
+    pub max_step: Option<f64>,
 }
 
 /// The scene with the request's start and goal (so a map made from the scene's extent holds
@@ -219,7 +222,10 @@ fn search(req: &Request, world: &Scene, budget: Duration, cancel: &Cancel) -> Pl
     match req.planner {
         Which::Archie => {
             let circles = world.circles();
-            let sp = StepParams::default();
+            let mut sp = StepParams::default();
+            if let Some(m) = req.max_step {
+                sp.max_step = m;
+            }
             let params = Which::archie_params(req.faithful, req.inflation);
             if req.faithful {
                 let mut p = archie::plan_tree(start, goal, &circles, &params).0;
@@ -319,5 +325,6 @@ pub fn scene_request(scene: &Scene, faithful: bool) -> Request {
         max_expansions: None,
         corridor: None,
         inflation: None,
+        max_step: None,
     }
 }

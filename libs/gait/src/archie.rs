@@ -40,16 +40,23 @@ impl Default for HeightConfig {
         HeightConfig {
             step_length: 0.25,
             stance_width: 0.2,
-            knee_min: 0.2,
+            knee_min: 0.4,
             margin: 0.01,
         }
     }
 }
 
-/// The COM height from the legs: [`archie::max_pelvis_height`] over the configured step,
-/// less the margin.
-pub fn default_z_c(robot: &ArchieConfig, h: &HeightConfig) -> f64 {
-    archie::max_pelvis_height(&robot.links, h.step_length, h.stance_width, h.knee_min) - h.margin
+/// The COM height from the legs: [`archie::max_pelvis_height`] over the configured step with
+/// the pelvis over the soles' ZMP points (`zmp_ahead` of their centres), less the margin.
+pub fn default_z_c(robot: &ArchieConfig, h: &HeightConfig, zmp_ahead: f64) -> f64 {
+    let ahead = robot.foot.centre_ahead + zmp_ahead;
+    archie::max_pelvis_height(
+        &robot.links,
+        h.step_length,
+        h.stance_width,
+        h.knee_min,
+        ahead,
+    ) - h.margin
 }
 
 /// One leg's rows.
@@ -97,9 +104,16 @@ pub struct ArchieGait {
 impl ArchieGait {
     /// The gait of `robot` with the COM height from its legs ([`default_z_c`]): the pelvis
     /// centre's height, or (`whole_body`) the whole robot's COM's standing with its pelvis
-    /// there.
-    pub fn new(robot: ArchieConfig, height: &HeightConfig, row_period: f64, whole_body: bool) -> ArchieGait {
-        let pelvis_z = default_z_c(&robot, height);
+    /// there, over the soles' ZMP points (`zmp_ahead` of their centres). An error when the
+    /// robot cannot stand there within its joints' limits.
+    pub fn new(
+        robot: ArchieConfig,
+        height: &HeightConfig,
+        zmp_ahead: f64,
+        row_period: f64,
+        whole_body: bool,
+    ) -> Result<ArchieGait, GaitError> {
+        let pelvis_z = default_z_c(&robot, height, zmp_ahead);
         let mut g = ArchieGait {
             robot,
             z_c: pelvis_z,
@@ -107,18 +121,25 @@ impl ArchieGait {
             whole_body: false,
             offset: [0.0; 3],
         };
+        let w = height.stance_width / 2.0;
+        let feet = [[-zmp_ahead, w, 0.0, 0.0], [-zmp_ahead, -w, 0.0, 0.0]];
+        let pelvis = Pose::at([0.0, 0.0, pelvis_z]);
+        let q = g
+            .solve(&pelvis, &feet, &[[0.0, 0.0, 0.0, 0.3, -0.15, 0.0]; 2])
+            .map_err(|e| {
+                GaitError::Plan(format!(
+                    "Archie cannot stand with its pelvis {pelvis_z:.3} m high (the height its \
+                     legs allow a {} m step): {e}",
+                    height.step_length
+                ))
+            })?;
         if whole_body {
-            let w = height.stance_width / 2.0;
-            let feet = [[0.0, w, 0.0, 0.0], [0.0, -w, 0.0, 0.0]];
-            let pelvis = Pose::at([0.0, 0.0, pelvis_z]);
-            if let Ok(q) = g.solve(&pelvis, &feet, &[[0.0, 0.0, 0.0, 0.3, -0.15, 0.0]; 2]) {
-                let com = g.com_of(&pelvis, &q);
-                g.z_c = com[2];
-                g.offset = [-com[0], -com[1], pelvis_z - com[2]];
-            }
+            let com = g.com_of(&pelvis, &q);
+            g.z_c = com[2];
+            g.offset = [-com[0], -com[1], pelvis_z - com[2]];
             g.whole_body = true;
         }
-        g
+        Ok(g)
     }
 
     /// The whole robot's centre of mass for a pelvis pose and the legs' joints.
@@ -134,7 +155,13 @@ impl ArchieGait {
         for (leg, q) in [(Leg::Left, &q[0]), (Leg::Right, &q[1])] {
             let (_, p) = archie::fk_points(&self.robot.links, leg, q);
             let w = |a: &V3| pelvis.apply(a);
-            let mid = |a: &V3, b: &V3| w(&[(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0, (a[2] + b[2]) / 2.0]);
+            let mid = |a: &V3, b: &V3| {
+                w(&[
+                    (a[0] + b[0]) / 2.0,
+                    (a[1] + b[1]) / 2.0,
+                    (a[2] + b[2]) / 2.0,
+                ])
+            };
             add(m.thigh, mid(&p[0], &p[1]));
             add(m.shank, mid(&p[1], &p[2]));
             add(m.foot, w(&p[3]));
@@ -183,7 +210,12 @@ impl ArchieGait {
 
     /// The joints of both legs for a pelvis pose and two soles (their centres' places),
     /// checked against the joints' position limits.
-    pub fn solve(&self, pelvis: &Pose, feet: &[Place; 2], near: &[Q; 2]) -> Result<[Q; 2], GaitError> {
+    pub fn solve(
+        &self,
+        pelvis: &Pose,
+        feet: &[Place; 2],
+        near: &[Q; 2],
+    ) -> Result<[Q; 2], GaitError> {
         let q = self.reach(pelvis, feet, near)?;
         for (k, leg) in [Leg::Left, Leg::Right].into_iter().enumerate() {
             self.robot
@@ -235,7 +267,9 @@ impl ArchieGait {
             let (com, yaw) = self.com_at(pat, k);
             let (pelvis, q) = self
                 .place(com, yaw, &feet, &near, &mut offset)
-                .map_err(|e| GaitError::Plan(format!("at {:.3} s: {e}", s.t - pat.timeline.start)))?;
+                .map_err(|e| {
+                    GaitError::Plan(format!("at {:.3} s: {e}", s.t - pat.timeline.start))
+                })?;
             near = q;
             pos.push(q);
             pelvises.push(pelvis);
@@ -250,7 +284,9 @@ impl ArchieGait {
                     [[0.0; 6]; 2]
                 } else {
                     let h = times[i + 1] - times[i - 1];
-                    std::array::from_fn(|l| std::array::from_fn(|j| (pos[i + 1][l][j] - pos[i - 1][l][j]) / h))
+                    std::array::from_fn(|l| {
+                        std::array::from_fn(|j| (pos[i + 1][l][j] - pos[i - 1][l][j]) / h)
+                    })
                 }
             })
             .collect();
@@ -319,7 +355,13 @@ impl ArchieGait {
                 for (leg, rows) in [(Leg::Left, &plan.left), (Leg::Right, &plan.right)] {
                     let (_, p) = archie::fk_points(&self.robot.links, leg, &rows.positions[i]);
                     let w = |a: &V3| pelvis.apply(a);
-                    let mid = |a: &V3, b: &V3| w(&[(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0, (a[2] + b[2]) / 2.0]);
+                    let mid = |a: &V3, b: &V3| {
+                        w(&[
+                            (a[0] + b[0]) / 2.0,
+                            (a[1] + b[1]) / 2.0,
+                            (a[2] + b[2]) / 2.0,
+                        ])
+                    };
                     pts.push((m.thigh, mid(&p[0], &p[1])));
                     pts.push((m.shank, mid(&p[1], &p[2])));
                     pts.push((m.foot, w(&p[3])));

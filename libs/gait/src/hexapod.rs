@@ -129,10 +129,7 @@ pub fn to_world(body: &BodyPose, p: [f64; 3]) -> [f64; 3] {
 
 /// A point of the world in the body frame.
 pub fn to_body(body: &BodyPose, p: [f64; 3]) -> [f64; 3] {
-    rotz(
-        -body[3],
-        [p[0] - body[0], p[1] - body[1], p[2] - body[2]],
-    )
+    rotz(-body[3], [p[0] - body[0], p[1] - body[1], p[2] - body[2]])
 }
 
 /// The hexapod's gaits over its kinematics.
@@ -156,9 +153,9 @@ impl HexGait {
             cfg.sensing_time,
             cfg.max_speed,
         ];
-        if !pos.iter().all(|v| v.is_finite() && *v > 0.0)
-            || !(cfg.stride.is_finite() && cfg.swing_height.is_finite() && cfg.min_margin.is_finite())
-        {
+        let finite =
+            cfg.stride.is_finite() && cfg.swing_height.is_finite() && cfg.min_margin.is_finite();
+        if !(pos.iter().all(|v| v.is_finite() && *v > 0.0) && finite) {
             return Err(GaitError::Parameter(format!(
                 "hexapod gait: positive periods, reach, height and speed wanted: {cfg:?}"
             )));
@@ -326,7 +323,9 @@ impl HexGait {
         let mut times = vec![0.0];
         for t in trans {
             if !(t.duration.is_finite() && t.duration > 0.0) {
-                return Err(GaitError::Plan("a transition needs a positive duration".into()));
+                return Err(GaitError::Plan(
+                    "a transition needs a positive duration".into(),
+                ));
             }
             times.push(times.last().unwrap() + t.duration);
         }
@@ -432,7 +431,7 @@ impl HexGait {
             .map(|k| [feet[k][0], feet[k][1]])
             .collect();
         let m = margin(&hull(&ground), [com[0], com[1]]);
-        if !(m >= self.cfg.min_margin) {
+        if m.is_nan() || m < self.cfg.min_margin {
             return Err(at(format!(
                 "the centre of mass is {m:.4} m inside the feet's polygon (at least {} m wanted)",
                 self.cfg.min_margin

@@ -20,7 +20,7 @@ use crate::lipm::{LipmConfig, Pendulum, State};
 use crate::preview::{Cart, Preview, PreviewConfig};
 use crate::support::{margin, polygon, Pose2, Sole, P2};
 use crate::swing::{Place, SwingConfig, SwingPath};
-use crate::timeline::{xy, Footstep, Phase, Side, Step, Timeline, TimingConfig};
+use crate::timeline::{xy, Footstep, Phase, Step, Timeline, TimingConfig};
 use crate::GaitError;
 
 /// Which COM generator.
@@ -546,12 +546,9 @@ impl Generator {
         for (f, s) in steps[1..].iter().zip(&supports[1..]) {
             // The sole whose ZMP point the pendulum's foot is.
             let z = zp(&f.place);
-            let foot = [
-                f.place[0] + s.foot[0] - z[0],
-                f.place[1] + s.foot[1] - z[1],
-            ];
+            let foot = [f.place[0] + s.foot[0] - z[0], f.place[1] + s.foot[1] - z[1]];
             let d = (foot[0] - f.place[0]).hypot(foot[1] - f.place[1]);
-            if !(d <= self.cfg.placement.max_displacement) {
+            if d.is_nan() || d > self.cfg.placement.max_displacement {
                 return Err(GaitError::Plan(format!(
                     "step {}: the modified foot placement moves it {d:.3} m from the plan \
                      (at most {} m)",
@@ -659,7 +656,7 @@ impl Generator {
             let bad = pat
                 .samples
                 .iter()
-                .find(|s| !(s.margin >= self.cfg.min_margin));
+                .find(|s| s.margin.is_nan() || s.margin < self.cfg.min_margin);
             let Some(bad) = bad else {
                 return Ok(pat);
             };

@@ -318,8 +318,8 @@ impl Preview {
         for (g, p) in self.gp.iter().zip(ahead) {
             preview += g * p;
         }
-        let sum = -(u + self.gx[0] * x[0] + self.gx[1] * x[1] + self.gx[2] * x[2] + preview)
-            / self.gi;
+        let sum =
+            -(u + self.gx[0] * x[0] + self.gx[1] * x[1] + self.gx[2] * x[2] + preview) / self.gi;
         cart.err_sum = sum - (self.zmp(&x) - now);
     }
 

@@ -32,10 +32,11 @@ fn solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
         }
         a.swap(col, piv);
         b.swap(col, piv);
+        let top = a[col].clone();
         for row in col + 1..n {
-            let f = a[row][col] / a[col][col];
-            for k in col..n {
-                a[row][k] -= f * a[col][k];
+            let f = a[row][col] / top[col];
+            for (x, t) in a[row][col..].iter_mut().zip(&top[col..]) {
+                *x -= f * t;
             }
             b[row] -= f * b[col];
         }
@@ -70,7 +71,12 @@ impl Spline {
         if !times.windows(2).all(|w| w[0] < w[1]) || !times.iter().all(|t| t.is_finite()) {
             return bad("a spline's times must be finite and strictly increasing");
         }
-        if !points.iter().chain(&start).chain(&end).all(|p| p.is_finite()) {
+        if !points
+            .iter()
+            .chain(&start)
+            .chain(&end)
+            .all(|p| p.is_finite())
+        {
             return bad("a spline's points and end conditions must be finite");
         }
         // Knots: the first, a free one halfway to the second, the inner ones, a free one
@@ -278,8 +284,9 @@ impl SwingPath {
                 "a swing's duration must be positive, not {duration}"
             )));
         }
-        if !cfg.via.windows(2).all(|w| w[0].time < w[1].time)
-            || !(cfg.via[0].time > 0.0 && cfg.via[2].time < 1.0)
+        if !(cfg.via.windows(2).all(|w| w[0].time < w[1].time)
+            && cfg.via[0].time > 0.0
+            && cfg.via[2].time < 1.0)
         {
             return Err(GaitError::Parameter(
                 "the via points' times must be increasing, inside (0, 1)".into(),
@@ -344,9 +351,15 @@ mod tests {
             assert!((s.eval(*t)[0] - p).abs() < 1e-12);
         }
         let e0 = s.eval(0.0);
-        assert!((e0[1] - 0.5).abs() < 1e-9 && (e0[2] + 2.0).abs() < 1e-9, "{e0:?}");
+        assert!(
+            (e0[1] - 0.5).abs() < 1e-9 && (e0[2] + 2.0).abs() < 1e-9,
+            "{e0:?}"
+        );
         let e1 = s.eval(1.0);
-        assert!((e1[1] - 0.1).abs() < 1e-9 && (e1[2] - 0.3).abs() < 1e-9, "{e1:?}");
+        assert!(
+            (e1[1] - 0.1).abs() < 1e-9 && (e1[2] - 0.3).abs() < 1e-9,
+            "{e1:?}"
+        );
         // Continuous position, velocity and acceleration at every knot.
         for (k, _) in s.knots() {
             let (a, b) = (s.eval(k - 1e-9), s.eval(k + 1e-9));

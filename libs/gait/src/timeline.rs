@@ -192,7 +192,6 @@ fn lerp(a: P2, b: P2, s: f64) -> P2 {
     [a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1])]
 }
 
-
 /// What the feet do at an instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Phase {
@@ -323,10 +322,13 @@ impl Timeline {
 
     /// Where the ZMP reference ends.
     pub fn zmp_end(&self) -> P2 {
-        self.hold
-            .unwrap_or_else(|| {
-                lerp(self.zmp_point(&self.feet_end[0]), self.zmp_point(&self.feet_end[1]), 0.5)
-            })
+        self.hold.unwrap_or_else(|| {
+            lerp(
+                self.zmp_point(&self.feet_end[0]),
+                self.zmp_point(&self.feet_end[1]),
+                0.5,
+            )
+        })
     }
 
     /// The ZMP reference at `t`.

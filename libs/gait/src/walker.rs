@@ -244,7 +244,10 @@ impl Walker {
             }
             let support = feet[f.side.other().index()];
             // The step in the support foot's frame.
-            let d = rot(-support[3], [f.place[0] - support[0], f.place[1] - support[1]]);
+            let d = rot(
+                -support[3],
+                [f.place[0] - support[0], f.place[1] - support[1]],
+            );
             let lateral = match f.side {
                 Side::Left => d[1],
                 Side::Right => -d[1],
@@ -452,11 +455,7 @@ impl Walker {
     /// Keeps the walk going at `now`: when the taken steps are about to run out before the
     /// goal, adds in-place steps (for at most `plan_timeout` after the last valid plan), then
     /// brings the feet together. Returns true when the pattern changed.
-    pub fn tick(
-        &mut self,
-        now: f64,
-        joints: &dyn Fn(&Pattern) -> Result<(), GaitError>,
-    ) -> bool {
+    pub fn tick(&mut self, now: f64, joints: &dyn Fn(&Pattern) -> Result<(), GaitError>) -> bool {
         if self.stopped || self.at_goal {
             return false;
         }

@@ -17,10 +17,16 @@ fn pendulum(a: f64, b: f64) -> Pendulum {
 
 /// Table 9: five steps of (s_x, s_y).
 fn table_9() -> Vec<WalkParam> {
-    [(0.0, 0.25), (0.4, 0.25), (0.4, 0.25), (0.4, 0.25), (0.0, 0.25)]
-        .iter()
-        .map(|&(sx, sy)| WalkParam { sx, sy, theta: 0.0 })
-        .collect()
+    [
+        (0.0, 0.25),
+        (0.4, 0.25),
+        (0.4, 0.25),
+        (0.4, 0.25),
+        (0.0, 0.25),
+    ]
+    .iter()
+    .map(|&(sx, sy)| WalkParam { sx, sy, theta: 0.0 })
+    .collect()
 }
 
 #[test]
@@ -31,36 +37,50 @@ fn eq_11_the_primitive_ends_where_it_mirrors_its_start() {
         // x from (−x̄, v̄x) to (x̄, v̄x); y from (ȳ, −v̄y) to (ȳ, v̄y), about the foot at 0.
         let x = p.advance(-bar[0], vbar[0], 0.0, 1.0);
         let y = p.advance(bar[1], -vbar[1], 0.0, 1.0);
-        assert!((x[0] - bar[0]).abs() < 1e-12 && (x[1] - vbar[0]).abs() < 1e-12, "{x:?}");
-        assert!((y[0] - bar[1]).abs() < 1e-12 && (y[1] - vbar[1]).abs() < 1e-12, "{y:?}");
+        assert!(
+            (x[0] - bar[0]).abs() < 1e-12 && (x[1] - vbar[0]).abs() < 1e-12,
+            "{x:?}"
+        );
+        assert!(
+            (y[0] - bar[1]).abs() < 1e-12 && (y[1] - vbar[1]).abs() < 1e-12,
+            "{y:?}"
+        );
     }
 }
 
-/// The cost of eq 22 for a foot at `pf`.
-fn cost(p: &Pendulum, a: f64, b: f64, xi: f64, vi: f64, xd: f64, vd: f64, pf: f64) -> f64 {
-    let e = p.advance(xi, vi, pf, 1.0);
-    a * (xd - e[0]).powi(2) + b * (vd - e[1]).powi(2)
+/// The cost of eq 22 for a foot at `pf`, from (`xi`, `vi`) with the target (`xd`, `vd`).
+fn cost(p: &Pendulum, from: (f64, f64), to: (f64, f64), pf: f64) -> f64 {
+    let c = p.config();
+    let e = p.advance(from.0, from.1, pf, 1.0);
+    c.a * (to.0 - e[0]).powi(2) + c.b * (to.1 - e[1]).powi(2)
 }
 
 #[test]
 fn eq_24_is_the_minimiser_a_numeric_search_finds() {
     for &(a, b) in &[(10.0, 1.0), (1.0, 1.0), (1.0, 10.0)] {
         let p = pendulum(a, b);
-        for &(xi, vi, xd, vd) in &[(0.1, 0.3, 0.5, 0.4), (-0.2, 0.1, 0.2, -0.3), (0.0, 0.0, 0.1, 0.2)] {
+        for &(xi, vi, xd, vd) in &[
+            (0.1, 0.3, 0.5, 0.4),
+            (-0.2, 0.1, 0.2, -0.3),
+            (0.0, 0.0, 0.1, 0.2),
+        ] {
             let closed = p.foot_placement(xi, vi, xd, vd);
             // Golden-section search over the foot's place.
             let (mut lo, mut hi) = (-5.0f64, 5.0f64);
             let r = (5f64.sqrt() - 1.0) / 2.0;
             for _ in 0..200 {
                 let (m1, m2) = (hi - r * (hi - lo), lo + r * (hi - lo));
-                if cost(&p, a, b, xi, vi, xd, vd, m1) < cost(&p, a, b, xi, vi, xd, vd, m2) {
+                if cost(&p, (xi, vi), (xd, vd), m1) < cost(&p, (xi, vi), (xd, vd), m2) {
                     hi = m2;
                 } else {
                     lo = m1;
                 }
             }
             let numeric = (lo + hi) / 2.0;
-            assert!((closed - numeric).abs() < 1e-7, "a {a} b {b}: {closed} vs {numeric}");
+            assert!(
+                (closed - numeric).abs() < 1e-7,
+                "a {a} b {b}: {closed} vs {numeric}"
+            );
         }
     }
 }
@@ -77,10 +97,19 @@ fn with_a_huge_position_weight_the_step_ends_on_its_target() {
 #[test]
 fn eq_95_gives_table_9s_footsteps() {
     let f = footsteps(&table_9(), [0.0, 0.0]);
-    let want = [[0.0, 0.25], [0.4, 0.0], [0.8, 0.25], [1.2, 0.0], [1.2, 0.25]];
+    let want = [
+        [0.0, 0.25],
+        [0.4, 0.0],
+        [0.8, 0.25],
+        [1.2, 0.0],
+        [1.2, 0.25],
+    ];
     assert_eq!(f.len(), 5);
     for (g, w) in f.iter().zip(&want) {
-        assert!((g[0] - w[0]).abs() < 1e-12 && (g[1] - w[1]).abs() < 1e-12, "{f:?}");
+        assert!(
+            (g[0] - w[0]).abs() < 1e-12 && (g[1] - w[1]).abs() < 1e-12,
+            "{f:?}"
+        );
     }
 }
 
@@ -91,10 +120,15 @@ fn the_walk_places_table_9s_feet_near_the_plan_and_joins_its_periods() {
     // The initial state chosen (the thesis gives none): the first primitive's, the COM
     // halfway between the feet (the left foot at (0, 0.25)) moving toward the support foot.
     let (bar, vbar) = p.primitive(0, params[0]);
-    let s = walk(&p, &params, [0.0, 0.0], State {
-        x: [-bar[0], bar[1]],
-        v: [vbar[0], -vbar[1]],
-    });
+    let s = walk(
+        &p,
+        &params,
+        [0.0, 0.0],
+        State {
+            x: [-bar[0], bar[1]],
+            v: [vbar[0], -vbar[1]],
+        },
+    );
     assert_eq!(s[0].start.x, [0.0, 0.125]);
     assert_eq!(s.len(), 6);
     // Each period starts where the last ended (position and velocity continuous).
@@ -116,7 +150,10 @@ fn eq_7_as_printed_differs() {
         ..*ok.config()
     })
     .unwrap();
-    let (a, b) = (ok.advance(0.1, 0.3, 0.0, 0.5), printed.advance(0.1, 0.3, 0.0, 0.5));
+    let (a, b) = (
+        ok.advance(0.1, 0.3, 0.0, 0.5),
+        printed.advance(0.1, 0.3, 0.0, 0.5),
+    );
     assert_eq!(a[0], b[0]);
     assert!((a[1] - b[1]).abs() > 0.1, "{a:?} {b:?}");
 }

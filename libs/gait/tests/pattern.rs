@@ -6,7 +6,7 @@ mod common;
 
 use common::{archie, config, generator, standing, straight};
 use stride_gait::archie::default_z_c;
-use stride_gait::pattern::{Generator, Kind, Start};
+use stride_gait::pattern::{Generator, Kind};
 use stride_gait::preview::{Cart, Preview, PreviewConfig};
 use stride_gait::swing::{SwingConfig, SwingPath};
 use stride_gait::timeline::{Footstep, Phase, Side};
@@ -15,7 +15,9 @@ use stride_gait::GaitError;
 fn walk(kind: Kind, n: usize, length: f64) -> (Generator, stride_gait::pattern::Pattern) {
     let g = generator(kind);
     let (l, r) = standing();
-    let p = g.plan(&g.standing(0.0, l, r), &straight(n, length, 1)).unwrap();
+    let p = g
+        .plan(&g.standing(0.0, l, r), &straight(n, length, 1))
+        .unwrap();
     (g, p)
 }
 
@@ -25,17 +27,24 @@ fn the_preview_controller_tracks_a_step_of_its_reference() {
     let n = p.horizon_ticks();
     assert_eq!(n, 480);
     // The reference steps from 0 to 0.1 m at tick 400; the cart follows, ahead of it.
-    let reference: Vec<f64> = (0..2000 + n).map(|k| if k < 400 { 0.0 } else { 0.1 }).collect();
+    let reference: Vec<f64> = (0..2000 + n)
+        .map(|k| if k < 400 { 0.0 } else { 0.1 })
+        .collect();
     let mut cart = Cart::default();
     let states = p.run(&mut cart, &reference, 2000).unwrap();
     let zmp: Vec<f64> = states.iter().map(|x| p.zmp(x)).collect();
     // It starts moving before the step (preview), and ends on it at rest.
     assert!(states[350][0].abs() > 1e-4, "{:?}", states[350]);
     let end = states.last().unwrap();
-    assert!((end[0] - 0.1).abs() < 1e-4 && end[1].abs() < 1e-4, "{end:?}");
+    assert!(
+        (end[0] - 0.1).abs() < 1e-4 && end[1].abs() < 1e-4,
+        "{end:?}"
+    );
     assert!((zmp[1999] - 0.1).abs() < 1e-4);
     // Too short a reference is an error, not a panic.
-    assert!(p.run(&mut Cart::default(), &reference[..100], 2000).is_err());
+    assert!(p
+        .run(&mut Cart::default(), &reference[..100], 2000)
+        .is_err());
 }
 
 #[test]
@@ -45,19 +54,27 @@ fn a_straight_walk_keeps_the_zmp_a_centimetre_inside_its_soles() {
         cfg.placement.max_displacement = 0.25;
         let g = Generator::new(cfg).unwrap();
         let (l, r) = standing();
-        let p = g.plan(&g.standing(0.0, l, r), &straight(8, 0.2, 1)).unwrap();
+        let p = g
+            .plan(&g.standing(0.0, l, r), &straight(8, 0.2, 1))
+            .unwrap();
         let (m, t) = p.min_margin();
         assert!(m >= 0.01, "{kind:?}: margin {m} at {t}");
         // It ends standing still between the feet.
         let last = p.samples.last().unwrap();
         let com = last.com.com();
-        assert!(com[1][0].abs() < 5e-3 && com[1][1].abs() < 5e-3, "{kind:?}: {com:?}");
+        assert!(
+            com[1][0].abs() < 5e-3 && com[1][1].abs() < 5e-3,
+            "{kind:?}: {com:?}"
+        );
         let mid = p.timeline.zmp_end();
         assert!(
             (com[0][0] - mid[0]).abs() < 0.01 && (com[0][1] - mid[1]).abs() < 0.01,
             "{kind:?}: {com:?}"
         );
-        eprintln!("{kind:?}: smallest margin {m:.4} m at {t:.2} s, {} samples", p.samples.len());
+        eprintln!(
+            "{kind:?}: smallest margin {m:.4} m at {t:.2} s, {} samples",
+            p.samples.len()
+        );
     }
 }
 
@@ -115,7 +132,10 @@ fn a_plan_replaced_mid_swing_continues_the_com_and_the_swing_foot() {
     // Mid-swing of the third step.
     let s = &old.timeline.steps[2];
     let k = old.index_at((s.lift + s.land) / 2.0);
-    assert!(matches!(old.samples[k].phase, Phase::Single { step: 2, .. }));
+    assert!(matches!(
+        old.samples[k].phase,
+        Phase::Single { step: 2, .. }
+    ));
     let start = old.state_at(k);
     let sw = start.under_way.unwrap();
     assert_eq!(sw.footstep.number, 3);
@@ -154,7 +174,10 @@ fn a_plan_replaced_in_double_support_continues_the_com() {
     let (g, old) = walk(Kind::Preview, 8, 0.2);
     let s = &old.timeline.steps[3];
     let k = old.index_at((s.start + s.lift) / 2.0);
-    assert!(matches!(old.samples[k].phase, Phase::Double { step: Some(3) }));
+    assert!(matches!(
+        old.samples[k].phase,
+        Phase::Double { step: Some(3) }
+    ));
     let start = old.state_at(k);
     let mut steps: Vec<Footstep> = straight(8, 0.2, 1)[3..].to_vec();
     for f in &mut steps[1..] {
@@ -206,7 +229,8 @@ fn a_step_whose_zmp_fails_is_given_more_time_and_an_impossible_one_is_refused() 
 #[test]
 fn swings_are_c2_hit_their_via_points_and_rest_at_both_ends() {
     let cfg = SwingConfig::default();
-    let path = SwingPath::new([0.0, 0.1, 0.0, 0.0], [0.3, 0.12, 0.05, 0.2], 0.1, 0.6, &cfg).unwrap();
+    let path =
+        SwingPath::new([0.0, 0.1, 0.0, 0.0], [0.3, 0.12, 0.05, 0.2], 0.1, 0.6, &cfg).unwrap();
     let apex = path.apex;
     assert!((apex - 0.13).abs() < 1e-12);
     for v in &cfg.via {
@@ -217,7 +241,10 @@ fn swings_are_c2_hit_their_via_points_and_rest_at_both_ends() {
     }
     for t in [0.0, 0.6] {
         let [_, vel, acc] = path.at(t);
-        assert!(vel.iter().chain(acc.iter()).all(|x| x.abs() < 1e-9), "{vel:?} {acc:?}");
+        assert!(
+            vel.iter().chain(acc.iter()).all(|x| x.abs() < 1e-9),
+            "{vel:?} {acc:?}"
+        );
     }
     // C²: no jump of position, velocity or acceleration anywhere (sampled across knots).
     let mut t = 0.0;
@@ -251,7 +278,11 @@ fn archies_joints_follow_the_pattern_within_their_limits() {
             (stride_kinematics::archie::Leg::Left, &plan.left, 0),
             (stride_kinematics::archie::Leg::Right, &plan.right, 1),
         ] {
-            let sole = pelvis.then(&stride_kinematics::archie::fk(&a.robot.links, leg, &rows.positions[i]));
+            let sole = pelvis.then(&stride_kinematics::archie::fk(
+                &a.robot.links,
+                leg,
+                &rows.positions[i],
+            ));
             let want = p.samples[k].feet[f][0];
             let frame = a.robot.sole_frame([want[0], want[1], want[2]], want[3]);
             worst = worst.max(sole.distance(&frame).0);
@@ -277,7 +308,9 @@ fn the_multibody_zmp_agrees_with_the_cart_table_zmp() {
         })
         .fold(0.0, f64::max);
     eprintln!("multibody against cart-table ZMP: worst {worst:.4} m");
-    assert!(worst < 0.06, "{worst}");
+    // The cart-table model leaves out the legs' own accelerations (a swing's lift-off and
+    // landing): documented tolerance 5 cm.
+    assert!(worst < 0.05, "{worst}");
 }
 
 #[test]
@@ -286,7 +319,7 @@ fn the_com_height_comes_from_the_legs_and_0_72_m_is_out_of_reach() {
     // mass below it, lower still.
     let z = common::z_c();
     assert!(z > 0.4 && z < 0.6, "{z}");
-    assert!(default_z_c(&common::robot(), &Default::default()) < 0.66);
+    assert!(default_z_c(&common::robot(), &Default::default(), common::ZMP_AHEAD) < 0.66);
     let mut a = archie();
     a.z_c = 0.72;
     let (_, p) = walk(Kind::Preview, 4, 0.2);

@@ -74,7 +74,9 @@ impl Links {
     };
 
     fn check(&self) -> Result<(), KinError> {
-        let l = [self.a1, self.a2, self.a3, self.d3, self.a6, self.d6, self.sole];
+        let l = [
+            self.a1, self.a2, self.a3, self.d3, self.a6, self.d6, self.sole,
+        ];
         if l.iter().all(|v| v.is_finite() && *v >= 0.0) && self.a2 > 0.0 && self.a3 > 0.0 {
             Ok(())
         } else {
@@ -153,13 +155,7 @@ pub fn fk_points(links: &Links, leg: Leg, q: &Q) -> (Pose, LegPoints) {
     let roll = crate::math::add(&pitch, &mv(&r_link, &[0.0, 0.0, -links.a1]));
     let r_foot = mul(&r_link, &rx(q[5]));
     let sole = crate::math::add(&roll, &mv(&r_foot, &[0.0, 0.0, -links.sole]));
-    (
-        Pose {
-            r: r_foot,
-            p: sole,
-        },
-        [h, knee, pitch, roll, sole],
-    )
+    (Pose { r: r_foot, p: sole }, [h, knee, pitch, roll, sole])
 }
 
 /// A cosine a rounding error past ±1 (a straight knee) brought back to it; further out, left
@@ -188,8 +184,16 @@ fn wrap(a: f64) -> f64 {
 /// ankle's a1); the hip's yaw, roll and pitch are what rotation is left. An error, never NaN,
 /// for a sole out of reach or a hip roll of ±90° (where yaw and pitch are one).
 pub fn ik(links: &Links, leg: Leg, sole: &Pose) -> Result<Q, KinError> {
-    if !(sole.p.iter().chain(sole.r.iter().flatten()).all(|v| v.is_finite())) {
-        return Err(KinError::Unreachable(format!("{} foot: not finite", leg.name())));
+    if !(sole
+        .p
+        .iter()
+        .chain(sole.r.iter().flatten())
+        .all(|v| v.is_finite()))
+    {
+        return Err(KinError::Unreachable(format!(
+            "{} foot: not finite",
+            leg.name()
+        )));
     }
     let s = leg.sign();
     let h = hip(links, leg);
@@ -207,7 +211,9 @@ pub fn ik(links: &Links, leg: Leg, sole: &Pose) -> Result<Q, KinError> {
         ))
     };
     if yz2 < 0.0 {
-        return Err(out_of_reach("closer to the roll axis than the thigh's offset"));
+        return Err(out_of_reach(
+            "closer to the roll axis than the thigh's offset",
+        ));
     }
     let z = yz2.sqrt();
     let q5 = wrap(z.atan2(y0) - r[2].atan2(r[1]));
@@ -261,15 +267,17 @@ fn pose_error(at: &Pose, target: &Pose) -> [f64; 6] {
 fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> Option<[f64; 6]> {
     for col in 0..6 {
         let piv = (col..6).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        if !(a[piv][col].abs() > 1e-300) {
+        let pivot = a[piv][col].abs();
+        if pivot.is_nan() || pivot <= 1e-300 {
             return None;
         }
         a.swap(col, piv);
         b.swap(col, piv);
+        let top = a[col];
         for row in col + 1..6 {
-            let f = a[row][col] / a[col][col];
-            for k in col..6 {
-                a[row][k] -= f * a[col][k];
+            let f = a[row][col] / top[col];
+            for (x, t) in a[row][col..].iter_mut().zip(&top[col..]) {
+                *x -= f * t;
             }
             b[row] -= f * b[col];
         }
@@ -351,17 +359,17 @@ pub fn solve(links: &Links, leg: Leg, sole: &Pose, near: &Q) -> Result<Q, KinErr
     }
 }
 
-/// The highest the pelvis centre stands (upright, level) with the feet `length` apart along
-/// x and `width` apart across (sole points), the pelvis anywhere on the middle 60 % of the
-/// way between them (where a double support's COM goes: it lags the ZMP, which reaches the
-/// feet), every knee bent at least `knee_min` rad: the height of the worst double support of
-/// a step of that length. By bisection.
-pub fn max_pelvis_height(links: &Links, length: f64, width: f64, knee_min: f64) -> f64 {
+/// The highest the pelvis centre stands (upright, level) with the feet's ankles `length`
+/// apart along x and `width` apart across, the pelvis over either foot or halfway (where a
+/// double support's COM goes), `ahead` in front of where it would be over the ankles (the
+/// ZMP's point on the sole lies ahead of the ankle), every knee bent at least `knee_min` rad:
+/// the height of the worst double support of a step of that length. By bisection.
+pub fn max_pelvis_height(links: &Links, length: f64, width: f64, knee_min: f64, ahead: f64) -> f64 {
     let ok = |z: f64| {
-        [0.2, 0.5, 0.8].iter().all(|&f| {
-            // The right foot at the origin, the left `length` ahead and `width` to the left;
-            // the pelvis a share f of the way from the right foot to the left.
-            let pelvis = [f * length, f * width, z];
+        [0.0, 0.5, 1.0].iter().all(|&f| {
+            // The right ankle at the origin, the left `length` ahead and `width` to the left;
+            // the pelvis a share f of the way from the right foot to the left, and ahead.
+            let pelvis = [f * length + ahead, f * width, z];
             [(Leg::Left, [length, width]), (Leg::Right, [0.0, 0.0])]
                 .iter()
                 .all(|&(leg, at)| {
@@ -587,7 +595,7 @@ pub struct PatternSample {
 /// division by k2), or as eq 42 prints it with the script's min(|θ01|, |θ02|).
 pub fn hip_roll(k1: f64, k2: f64, k3: f64, faithful: Faithful) -> Result<f64, KinError> {
     let disc = k1 * k1 - k2 * k3;
-    if !(disc >= 0.0) {
+    if disc.is_nan() || disc < 0.0 {
         return Err(KinError::Unreachable(format!(
             "eq 42: no hip roll puts the COM there (k1² − k2 k3 = {disc:.3e} < 0)"
         )));
@@ -800,12 +808,12 @@ impl ArchieConfig {
         }
         let f = &self.foot;
         let m = &self.mass;
-        if !(f.length > 0.0 && f.width > 0.0 && f.centre_ahead.is_finite())
-            || ![m.pelvis, m.thigh, m.shank, m.foot]
-                .iter()
-                .all(|v| v.is_finite() && *v >= 0.0)
-            || !(m.total() > 0.0)
-        {
+        let sole_ok = f.length > 0.0 && f.width > 0.0 && f.centre_ahead.is_finite();
+        let masses_ok = [m.pelvis, m.thigh, m.shank, m.foot]
+            .iter()
+            .all(|v| v.is_finite() && *v >= 0.0)
+            && m.total() > 0.0;
+        if !(sole_ok && masses_ok) {
             return Err(KinError::Config(
                 "a sole of positive size and masses that are not negative".into(),
             ));

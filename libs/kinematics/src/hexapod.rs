@@ -72,7 +72,9 @@ impl Links {
     pub fn ik(&self, foot: [f64; 3], faithful: Faithful) -> Result<LegAngles, KinError> {
         let [x, y, z] = foot;
         if !(x.is_finite() && y.is_finite() && z.is_finite()) {
-            return Err(KinError::Unreachable(format!("foot {foot:?} is not finite")));
+            return Err(KinError::Unreachable(format!(
+                "foot {foot:?} is not finite"
+            )));
         }
         let h = x.hypot(y);
         if h < 1e-9 {
@@ -92,9 +94,7 @@ impl Links {
             )
         };
         if dl < 1e-9 {
-            return Err(KinError::Singular(
-                "the foot is on the femur axis".into(),
-            ));
+            return Err(KinError::Singular("the foot is on the femur axis".into()));
         }
         let delta = if faithful.eq_3_5 {
             -(z / dl).atan()
@@ -218,7 +218,9 @@ impl Hexapod {
         let mut numbers: Vec<u8> = cfg.leg.iter().map(|g| g.number).collect();
         numbers.sort_unstable();
         if numbers != [1, 2, 3, 4, 5, 6] {
-            return bad(format!("six legs numbered 1 to 6 expected, found {numbers:?}"));
+            return bad(format!(
+                "six legs numbered 1 to 6 expected, found {numbers:?}"
+            ));
         }
         for g in &cfg.leg {
             let signs_ok = g.signs.iter().all(|s| s.abs() == 1) && g.alpha_ccw.abs() == 1;
@@ -261,7 +263,11 @@ impl Hexapod {
     /// A point of the body frame in the leg frame of `leg`.
     pub fn to_leg(leg: &LegConfig, p: [f64; 3]) -> [f64; 3] {
         let (s, c) = leg.yaw_deg.to_radians().sin_cos();
-        let d = [p[0] - leg.mount[0], p[1] - leg.mount[1], p[2] - leg.mount[2]];
+        let d = [
+            p[0] - leg.mount[0],
+            p[1] - leg.mount[1],
+            p[2] - leg.mount[2],
+        ];
         [c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]]
     }
 

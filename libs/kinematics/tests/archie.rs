@@ -11,7 +11,7 @@ use stride_kinematics::archie::{
     ik_dls, joint_pattern, max_pelvis_height, scilab_chain, solve, ArchieConfig, Faithful, Leg,
     Links, Q,
 };
-use stride_kinematics::math::{rx, ry, rz, mul, Pose};
+use stride_kinematics::math::{mul, rx, ry, rz, Pose};
 use stride_kinematics::KinError;
 
 const L: Links = Links::SCRIPT;
@@ -39,10 +39,16 @@ const GOLDEN: [([f64; 12], [f64; 3], [[f64; 3]; 3], [f64; 3]); 5] = [
     ),
     // G2: frontal, pelvis upright
     (
-        [0.1, 0.0, 0.0, 0.0, -0.1, 0.0, 0.0, 0.05, 0.3, -0.6, 0.3, -0.05],
+        [
+            0.1, 0.0, 0.0, 0.0, -0.1, 0.0, 0.0, 0.05, 0.3, -0.6, 0.3, -0.05,
+        ],
         [0.0, 0.0957402549095405, 0.67904038029035],
         [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        [0.014776010333066962, 0.2938597714889089, 0.03407752338921802],
+        [
+            0.014776010333066962,
+            0.2938597714889089,
+            0.03407752338921802,
+        ],
     ),
     // G3: sagittal, pelvis upright
     (
@@ -53,21 +59,37 @@ const GOLDEN: [([f64; 12], [f64; 3], [[f64; 3]; 3], [f64; 3]); 5] = [
     ),
     // G4: pelvis upright, with yaw
     (
-        [-0.08, 0.15, 0.1, -0.25, 0.08, 0.3, -0.3, 0.1, 0.2, -0.4, 0.2, -0.1],
+        [
+            -0.08, 0.15, 0.1, -0.25, 0.08, 0.3, -0.3, 0.1, 0.2, -0.4, 0.2, -0.1,
+        ],
         [0.14214596041155847, 0.21487808847181716, 0.6542830662101333],
         [
             [0.955336489125606, 0.29552020666133955, 0.0],
             [-0.29552020666133955, 0.955336489125606, 0.0],
             [0.0, 0.0, 1.0],
         ],
-        [0.17867624555083209, 0.4432344300407288, 0.0015229861202469483],
+        [
+            0.17867624555083209,
+            0.4432344300407288,
+            0.0015229861202469483,
+        ],
     ),
     // G5: general
     (
-        [0.1, -0.2, 0.4, 0.15, 0.2, -0.3, 0.1, -0.1, 0.25, -0.5, 0.2, 0.08],
-        [-0.025996734350700077, 0.10268699029476441, 0.706377264751819],
         [
-            [0.9175488346467758, -0.21252296505940754, 0.33606268070212914],
+            0.1, -0.2, 0.4, 0.15, 0.2, -0.3, 0.1, -0.1, 0.25, -0.5, 0.2, 0.08,
+        ],
+        [
+            -0.025996734350700077,
+            0.10268699029476441,
+            0.706377264751819,
+        ],
+        [
+            [
+                0.9175488346467758,
+                -0.21252296505940754,
+                0.33606268070212914,
+            ],
             [0.315380300322442, 0.9037001299761696, -0.2895882270562472],
             [-0.24215573957036343, 0.371698889429888, 0.8962145576756262],
         ],
@@ -87,7 +109,12 @@ fn forward_kinematics_meets_the_golden_vectors() {
         });
         assert!(dp < 1e-12 && dr < 1e-12, "G{}: {dp:.2e} m, {dr:.2e}", k + 1);
         let left = pelvis.then(&fk(&L, Leg::Left, &ql));
-        assert!(close(&left.p, left_sole) < 1e-12, "G{}: {:?}", k + 1, left.p);
+        assert!(
+            close(&left.p, left_sole) < 1e-12,
+            "G{}: {:?}",
+            k + 1,
+            left.p
+        );
     }
 }
 
@@ -222,7 +249,9 @@ fn the_scripts_chain_is_off_with_the_pelvis_pitched() {
         .map(|(p, q)| close(p, q))
         .fold(0.0, f64::max);
     assert!(worst > 0.4, "{worst}");
-    eprintln!("Stepping.sce's chain off by {err:.4} m at 0.1 rad of pelvis pitch, {worst:.3} m at G5");
+    eprintln!(
+        "Stepping.sce's chain off by {err:.4} m at 0.1 rad of pelvis pitch, {worst:.3} m at G5"
+    );
 }
 
 #[test]
@@ -230,7 +259,10 @@ fn a_singular_hip_falls_back_to_damped_least_squares() {
     // Hip roll at 90°: the closed form has no yaw/pitch split; the fallback meets the pose.
     let q = [0.2, std::f64::consts::FRAC_PI_2, -0.3, 0.8, -0.4, 0.1];
     let target = fk(&L, Leg::Left, &q);
-    assert!(matches!(ik(&L, Leg::Left, &target), Err(KinError::Singular(_))));
+    assert!(matches!(
+        ik(&L, Leg::Left, &target),
+        Err(KinError::Singular(_))
+    ));
     let near = [0.1, 1.5, -0.2, 0.7, -0.3, 0.0];
     let got = solve(&L, Leg::Left, &target, &near).unwrap();
     let (dp, dr) = fk(&L, Leg::Left, &got).distance(&target);
@@ -241,27 +273,57 @@ fn a_singular_hip_falls_back_to_damped_least_squares() {
 fn unreachable_and_bad_targets_are_errors() {
     let far = Pose::at([0.0, 0.09, -1.0]);
     let e = ik(&L, Leg::Left, &far).unwrap_err();
-    assert!(matches!(&e, KinError::Unreachable(m) if m.contains("knee reaches")), "{e}");
+    assert!(
+        matches!(&e, KinError::Unreachable(m) if m.contains("knee reaches")),
+        "{e}"
+    );
     let nan = Pose::at([f64::NAN, 0.0, -0.6]);
-    assert!(matches!(ik(&L, Leg::Left, &nan), Err(KinError::Unreachable(_))));
+    assert!(matches!(
+        ik(&L, Leg::Left, &nan),
+        Err(KinError::Unreachable(_))
+    ));
     assert!(solve(&L, Leg::Left, &far, &[0.0; 6]).is_err());
 }
 
 /// The notes' table of section 2.4.6 (Stepping.sce re-run): ΔY, ΔX (cm); θ0 as the script
 /// computes it, θ1, hip y, z_hip, hn1 (cm), θ8, θ9, θ10 (degrees).
 const TABLE: [[f64; 10]; 12] = [
-    [16.5, 0.0, 0.000, 0.000, 16.500, 72.500, 57.000, 0.000, 0.000, 0.000],
-    [14.5, 0.0, 1.658, 0.000, 14.500, 72.688, 55.392, 12.471, -27.392, 14.920],
-    [12.5, 0.0, 3.310, 0.000, 12.503, 72.818, 53.952, 17.178, -37.797, 20.618],
-    [10.5, 0.0, 4.956, 0.000, 10.511, 72.890, 52.670, 20.480, -45.136, 24.656],
-    [8.5, 0.0, 6.594, 0.000, 8.527, 72.905, 51.540, 23.004, -50.775, 27.771],
-    [6.5, 0.0, 8.225, 0.000, 6.552, 72.863, 50.557, 24.994, -55.243, 30.250],
-    [6.5, 0.0, 8.225, 0.000, 6.552, 72.863, 50.557, 24.994, -55.243, 30.250],
-    [8.5, 3.0, 6.602, 3.017, 8.527, 72.826, 51.455, 26.336, -50.765, 24.429],
-    [10.5, 6.0, 4.978, 6.042, 10.511, 72.575, 52.333, 27.007, -45.105, 18.098],
-    [12.5, 9.0, 3.345, 9.085, 12.503, 72.106, 53.205, 26.755, -37.742, 10.987],
-    [14.5, 12.0, 1.689, 12.153, 14.500, 71.414, 54.084, 24.952, -27.328, 2.375],
-    [16.5, 15.0, 0.000, 15.258, 16.500, 70.491, 54.991, 15.258, 0.000, -15.258],
+    [
+        16.5, 0.0, 0.000, 0.000, 16.500, 72.500, 57.000, 0.000, 0.000, 0.000,
+    ],
+    [
+        14.5, 0.0, 1.658, 0.000, 14.500, 72.688, 55.392, 12.471, -27.392, 14.920,
+    ],
+    [
+        12.5, 0.0, 3.310, 0.000, 12.503, 72.818, 53.952, 17.178, -37.797, 20.618,
+    ],
+    [
+        10.5, 0.0, 4.956, 0.000, 10.511, 72.890, 52.670, 20.480, -45.136, 24.656,
+    ],
+    [
+        8.5, 0.0, 6.594, 0.000, 8.527, 72.905, 51.540, 23.004, -50.775, 27.771,
+    ],
+    [
+        6.5, 0.0, 8.225, 0.000, 6.552, 72.863, 50.557, 24.994, -55.243, 30.250,
+    ],
+    [
+        6.5, 0.0, 8.225, 0.000, 6.552, 72.863, 50.557, 24.994, -55.243, 30.250,
+    ],
+    [
+        8.5, 3.0, 6.602, 3.017, 8.527, 72.826, 51.455, 26.336, -50.765, 24.429,
+    ],
+    [
+        10.5, 6.0, 4.978, 6.042, 10.511, 72.575, 52.333, 27.007, -45.105, 18.098,
+    ],
+    [
+        12.5, 9.0, 3.345, 9.085, 12.503, 72.106, 53.205, 26.755, -37.742, 10.987,
+    ],
+    [
+        14.5, 12.0, 1.689, 12.153, 14.500, 71.414, 54.084, 24.952, -27.328, 2.375,
+    ],
+    [
+        16.5, 15.0, 0.000, 15.258, 16.500, 70.491, 54.991, 15.258, 0.000, -15.258,
+    ],
 ];
 
 #[test]
@@ -332,10 +394,10 @@ fn the_pelvis_centre_stands_at_most_0_679_m_high() {
     // Straight legs, the feet 33 cm apart (the zero pose): 0.675 m; rolled out to the best
     // spacing, 0.679 m: the thesis's z_c = 0.72 m is out of reach. (With the feet apart
     // across, the pelvis between them must lean: 0.675 m is its height over one foot.)
-    let zero = max_pelvis_height(&L, 0.0, 0.0, 0.0);
+    let zero = max_pelvis_height(&L, 0.0, 0.0, 0.0, 0.0);
     assert!(zero < 0.68 && zero > 0.67, "{zero}");
     let best = (0..=40)
-        .map(|i| max_pelvis_height(&L, 0.0, 0.2 + i as f64 * 0.005, 0.0))
+        .map(|i| max_pelvis_height(&L, 0.0, 0.2 + i as f64 * 0.005, 0.0, 0.0))
         .fold(0.0, f64::max);
     assert!((best - 0.679).abs() < 1e-3 && best < 0.72, "{best}");
 }
@@ -354,7 +416,12 @@ fn the_shipped_robot_file_loads_and_bad_ones_are_refused() {
     let e = ArchieConfig::from_toml(&text.replacen("a2 = 0.26", "a2 = -0.26", 1)).unwrap_err();
     assert!(e.to_string().contains("positive"), "{e}");
     // A joint beyond its limit.
-    let e = cfg.check_q(Leg::Right, &[0.0, 0.0, 0.0, 2.5, 0.0, 0.0]).unwrap_err();
-    assert!(matches!(&e, KinError::Limit { joint, .. } if joint == "right_knee"), "{e}");
+    let e = cfg
+        .check_q(Leg::Right, &[0.0, 0.0, 0.0, 2.5, 0.0, 0.0])
+        .unwrap_err();
+    assert!(
+        matches!(&e, KinError::Limit { joint, .. } if joint == "right_knee"),
+        "{e}"
+    );
     let _ = (ry(0.0), archie::JOINTS);
 }

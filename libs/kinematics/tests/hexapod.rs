@@ -40,7 +40,10 @@ fn the_worked_example_gives_41_99_degrees_corrected_and_33_78_printed() {
     assert!((eps - a.beta.to_degrees() - 41.99).abs() < 0.005, "{a:?}");
     assert!((a.gamma.to_degrees() - 79.40).abs() < 0.005, "{a:?}");
     let printed = LINKS.ik(EXAMPLE, Faithful { eq_3_5: true }).unwrap();
-    assert!((eps - printed.beta.to_degrees() - 33.78).abs() < 0.005, "{printed:?}");
+    assert!(
+        (eps - printed.beta.to_degrees() - 33.78).abs() < 0.005,
+        "{printed:?}"
+    );
     // The corrected angles put the foot there; the printed ones do not.
     assert!(dist(LINKS.fk(&a), EXAMPLE) < 1e-12);
     assert!(dist(LINKS.fk(&printed), EXAMPLE) > 0.01);
@@ -86,11 +89,15 @@ fn unreachable_and_singular_targets_are_errors() {
         "{e}"
     );
     // Too close to the femur joint: less than 130 − 66 mm.
-    let e = LINKS.ik([0.062, 0.0, -0.01], Faithful::default()).unwrap_err();
+    let e = LINKS
+        .ik([0.062, 0.0, -0.01], Faithful::default())
+        .unwrap_err();
     assert!(matches!(e, KinError::Unreachable(_)), "{e}");
     let e = LINKS.ik([0.0, 0.0, -0.1], Faithful::default()).unwrap_err();
     assert!(matches!(e, KinError::Singular(_)), "{e}");
-    let e = LINKS.ik([f64::NAN, 0.0, -0.1], Faithful::default()).unwrap_err();
+    let e = LINKS
+        .ik([f64::NAN, 0.0, -0.1], Faithful::default())
+        .unwrap_err();
     assert!(matches!(e, KinError::Unreachable(_)), "{e}");
 }
 
@@ -99,7 +106,11 @@ fn mirrored_targets_on_mirrored_legs_give_raw_values_mirrored_about_511_5() {
     let h = shipped();
     // Front, middle and rear pairs: left leg, right leg.
     for (l, r) in [(1u8, 2u8), (6, 3), (5, 4)] {
-        for target in [[0.172, 0.0, -0.08], [0.175, 0.03, -0.075], [0.17, -0.02, -0.085]] {
+        for target in [
+            [0.172, 0.0, -0.08],
+            [0.175, 0.03, -0.075],
+            [0.17, -0.02, -0.085],
+        ] {
             let left = h.leg(l).unwrap();
             let foot_l = Hexapod::to_body(left, target);
             let foot_r = [foot_l[0], -foot_l[1], foot_l[2]];
@@ -141,7 +152,10 @@ fn with_zero_offsets_the_worked_example_exceeds_the_tibia_limit_on_legs_5_and_6(
             );
         } else {
             let s = r.unwrap();
-            assert!((s.servo_deg[2].abs() - 100.60).abs() < 0.005, "leg {n}: {s:?}");
+            assert!(
+                (s.servo_deg[2].abs() - 100.60).abs() < 0.005,
+                "leg {n}: {s:?}"
+            );
         }
     }
 }

@@ -13,6 +13,10 @@ use stride_gait::swing::{Place, SwingConfig};
 use stride_gait::timeline::{Footstep, Side, TimingConfig};
 use stride_kinematics::archie::ArchieConfig;
 
+/// Archie's sole centre is 8 cm ahead of its ankle: the ZMP reference 3 cm ahead of the
+/// ankle keeps 6 cm of sole behind it and the shanks more upright.
+pub const ZMP_AHEAD: f64 = -0.05;
+
 pub fn robot() -> ArchieConfig {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/robots/archie.toml");
     ArchieConfig::load(&path).unwrap()
@@ -34,7 +38,7 @@ pub fn config(kind: Kind) -> PatternConfig {
         // Archie's sole centre is 8 cm ahead of its ankle: the ZMP reference 3 cm ahead of
         // the ankle keeps 6 cm of sole behind it and the shanks more upright.
         timing: TimingConfig {
-            zmp_ahead: -0.05,
+            zmp_ahead: ZMP_AHEAD,
             ..TimingConfig::default()
         },
         sole: Sole {
@@ -51,7 +55,7 @@ pub fn generator(kind: Kind) -> Generator {
 
 /// Archie's gait: the whole robot's COM on the pattern, rows every 10 ms.
 pub fn archie() -> ArchieGait {
-    ArchieGait::new(robot(), &HeightConfig::default(), 0.01, true)
+    ArchieGait::new(robot(), &HeightConfig::default(), ZMP_AHEAD, 0.01, true).unwrap()
 }
 
 /// The feet standing at x = 0, 0.2 m apart: left, right.
@@ -67,7 +71,11 @@ pub fn straight(n: usize, length: f64, first: i64) -> Vec<Footstep> {
         .map(|i| {
             let side = if i % 2 == 0 { Side::Left } else { Side::Right };
             let k = side.index();
-            x[k] = if i + 1 == n { x[1 - k] } else { x[1 - k] + length };
+            x[k] = if i + 1 == n {
+                x[1 - k]
+            } else {
+                x[1 - k] + length
+            };
             let y = if side == Side::Left { 0.1 } else { -0.1 };
             Footstep {
                 number: first + i as i64,
