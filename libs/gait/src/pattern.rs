@@ -233,13 +233,16 @@ impl Pattern {
                 },
             }
         });
-        // The jerk the pattern applies from this sample on.
-        let jerk = self.samples.get(k + 1).map(|n| {
-            [
-                (n.com.x.x[2] - s.com.x.x[2]) / self.dt,
-                (n.com.y.x[2] - s.com.y.x[2]) / self.dt,
-            ]
-        });
+        // The jerk the pattern applies from this sample on (at its end, the last one).
+        let (a, b) = match (k.checked_sub(1), self.samples.get(k + 1)) {
+            (_, Some(n)) => (s, n),
+            (Some(p), None) => (&self.samples[p], s),
+            (None, None) => (s, s),
+        };
+        let jerk = Some([
+            (b.com.x.x[2] - a.com.x.x[2]) / self.dt,
+            (b.com.y.x[2] - a.com.y.x[2]) / self.dt,
+        ]);
         Start {
             t: s.t,
             com: s.com,
@@ -347,8 +350,11 @@ impl Generator {
     ) -> Result<Timeline, GaitError> {
         let feet = [start.feet[0][0], start.feet[1][0]];
         let Some(uw) = start.under_way else {
+            // Standing (a settled pattern's COM creeps at most millimetres a second): a walk
+            // starts with the lead.
             let com = start.com.com();
-            let at_rest = com[1].iter().chain(&com[2]).all(|v| v.abs() < 1e-6);
+            let at_rest =
+                com[1].iter().all(|v| v.abs() < 2e-3) && com[2].iter().all(|v| v.abs() < 2e-2);
             return Timeline::new(
                 start.t,
                 start.zmp_ref,

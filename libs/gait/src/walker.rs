@@ -165,7 +165,7 @@ impl Walker {
         right: Place,
         number: i64,
     ) -> Result<Walker, GaitError> {
-        let pattern = gen.generate(&Start::standing(now, left, right), &[], &[])?;
+        let pattern = gen.generate(&gen.standing(now, left, right), &[], &[])?;
         Ok(Walker {
             gen,
             cfg,

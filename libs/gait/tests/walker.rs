@@ -1,0 +1,229 @@
+//! The walk in step with a replanning planner (KAIST's protocol): plans taken when their
+//! echoed step number matches, late ones dropped, in-place steps while no plan comes, a
+//! stand when none comes for long or on a stop, bad plans refused.
+
+mod common;
+
+use common::{generator, standing, straight};
+use stride_gait::pattern::{Kind, Pattern};
+use stride_gait::timeline::{Footstep, Side};
+use stride_gait::walker::{Plan, Verdict, Walker, WalkerConfig};
+use stride_gait::GaitError;
+
+fn ok(_: &Footstep, _: &[f64; 4]) -> Result<(), String> {
+    Ok(())
+}
+
+fn any(_: &Pattern) -> Result<(), GaitError> {
+    Ok(())
+}
+
+fn walker() -> Walker {
+    let (l, r) = standing();
+    Walker::new(
+        generator(Kind::Preview),
+        WalkerConfig::default(),
+        0.0,
+        l,
+        r,
+        0,
+    )
+    .unwrap()
+}
+
+/// A plan of `n` steps straight ahead from where the walker's feet will be when its steps
+/// up to `echo` are done (a planner planning from the predicted stance), numbered from
+/// `echo + 1`, the last `pad` of them in place.
+fn plan_from(w: &Walker, t: f64, echo: i64, n: usize, pad: usize) -> Plan {
+    let tl = &w.pattern().timeline;
+    let mut feet = [tl.feet_start[0], tl.feet_start[1]];
+    for s in &tl.steps {
+        if s.footstep.number <= echo {
+            feet[s.footstep.side.index()] = s.footstep.place;
+        }
+    }
+    let _ = t;
+    // The next foot to swing: the other than the last one moved.
+    let last = tl
+        .steps
+        .iter()
+        .filter(|s| s.footstep.number <= echo)
+        .last()
+        .map(|s| s.footstep.side);
+    let mut side = last.map_or(Side::Left, Side::other);
+    let mut steps = Vec::new();
+    for i in 0..n {
+        let k = side.index();
+        let other = feet[1 - k];
+        let place = if i + pad >= n {
+            feet[k]
+        } else {
+            [other[0] + 0.15, feet[k][1], 0.0, 0.0]
+        };
+        steps.push(Footstep {
+            number: echo + 1 + i as i64,
+            side,
+            place,
+            swing_height: 0.0,
+            duration: 0.0,
+            padding: i + pad >= n,
+        });
+        feet[k] = place;
+        side = side.other();
+    }
+    Plan { echo, steps }
+}
+
+#[test]
+fn a_matching_plan_is_walked_and_the_robot_stands_at_its_goal() {
+    let mut w = walker();
+    assert_eq!(w.counter(0.0).number, 0);
+    let p = plan_from(&w, 0.0, 0, 5, 2);
+    assert_eq!(w.on_plan(&p, 0.0, &ok, &any), Verdict::Taken(1));
+    // The counter counts the plan's steps, with the foot in the air and the phase.
+    let tl = w.pattern().timeline.clone();
+    assert_eq!(
+        tl.steps.len(),
+        3,
+        "padding at the end is the goal: not walked"
+    );
+    let s = &tl.steps[1];
+    let c = w.counter((s.lift + s.land) / 2.0);
+    assert_eq!(c.number, 2);
+    assert_eq!(c.swing, Some(s.footstep.side));
+    assert!(c.phase > 0.5 && c.phase < 1.0, "{c:?}");
+    // Nothing more comes: the robot stands where the plan ended, still.
+    assert!(!w.tick(tl.steps[2].start + 0.1, &any));
+    assert!(w.standing(tl.end));
+    assert_eq!(w.counter(tl.end).number, 3);
+    assert_eq!(w.counters().in_place, 0);
+}
+
+#[test]
+fn a_late_planner_gets_in_place_steps_until_its_plan_matches() {
+    let (l, r) = standing();
+    let cfg = WalkerConfig {
+        plan_timeout: 10.0,
+        ..WalkerConfig::default()
+    };
+    let mut w = Walker::new(generator(Kind::Preview), cfg, 0.0, l, r, 0).unwrap();
+    let p = plan_from(&w, 0.0, 0, 3, 0);
+    assert!(matches!(w.on_plan(&p, 0.0, &ok, &any), Verdict::Taken(1)));
+    // During step 2 a plan for step 1 comes: it is late (the robot is past step 1).
+    let s2 = w.pattern().timeline.steps[1].clone();
+    let late = plan_from(&w, s2.lift, 1, 3, 0);
+    let v = w.on_plan(&late, s2.lift, &ok, &any);
+    assert_eq!(v, Verdict::Late { echo: 1, now: 2 });
+    assert_eq!(w.counters().late, 1);
+    // The last taken step begins with nothing after it: the robot steps in place.
+    let s3 = w.pattern().timeline.steps[2].clone();
+    assert!(w.tick(s3.start, &any));
+    assert!(w.counters().in_place > 0);
+    let next = w
+        .pattern()
+        .timeline
+        .steps
+        .iter()
+        .find(|s| s.footstep.number == 4)
+        .cloned()
+        .unwrap();
+    assert!(next.footstep.padding);
+    assert_eq!(
+        next.footstep.place, next.from,
+        "an in-place step lands where it lifted"
+    );
+    // A plan that echoes the step under way then is taken and walked.
+    let t = (next.lift + next.land) / 2.0;
+    let now = w.counter(t).number;
+    assert_eq!(now, 4);
+    let p = plan_from(&w, t, now, 3, 0);
+    assert_eq!(w.on_plan(&p, t, &ok, &any), Verdict::Taken(5));
+    assert_eq!(w.counters().taken, 2);
+}
+
+#[test]
+fn with_no_valid_plan_for_long_the_robot_brings_its_feet_together_and_stands() {
+    let mut w = walker();
+    let p = plan_from(&w, 0.0, 0, 3, 0);
+    w.on_plan(&p, 0.0, &ok, &any);
+    // In-place steps after the plan, then, past the timeout, feet together and stand.
+    let mut t = 0.0;
+    while t < 20.0 && !w.standing(t) {
+        w.tick(t, &any);
+        t += 0.05;
+    }
+    assert!(w.standing(t), "still walking at {t} s");
+    let c = w.counters();
+    assert!(c.in_place > 0 && c.stops == 1, "{c:?}");
+    assert!(w.note().contains("no valid plan"), "{}", w.note());
+    let feet = w.pattern().timeline.feet_end;
+    assert!((feet[0][0] - feet[1][0]).abs() < 1e-9);
+    assert!(
+        ((feet[0][1] - feet[1][1]).abs() - 0.2).abs() < 1e-9,
+        "{feet:?}"
+    );
+}
+
+#[test]
+fn a_bad_plan_is_refused_with_its_reason_and_the_robot_stands() {
+    let mut w = walker();
+    let mut p = plan_from(&w, 0.0, 0, 3, 0);
+    p.steps[1].place[0] = f64::NAN;
+    match w.on_plan(&p, 0.0, &ok, &any) {
+        Verdict::Refused(why) => assert!(why.contains("not a finite footstep"), "{why}"),
+        v => panic!("{v:?}"),
+    }
+    let mut p = plan_from(&w, 0.0, 0, 3, 0);
+    p.steps[1].place[0] += 0.5;
+    match w.on_plan(&p, 0.0, &ok, &any) {
+        Verdict::Refused(why) => assert!(why.contains("step 2") && why.contains("along"), "{why}"),
+        v => panic!("{v:?}"),
+    }
+    let p = plan_from(&w, 0.0, 0, 3, 0);
+    let far = |f: &Footstep, _: &[f64; 4]| {
+        if f.number == 3 {
+            Err("no leg reaches it".to_string())
+        } else {
+            Ok(())
+        }
+    };
+    match w.on_plan(&p, 0.0, &far, &any) {
+        Verdict::Refused(why) => assert!(why.contains("step 3: no leg reaches it"), "{why}"),
+        v => panic!("{v:?}"),
+    }
+    assert_eq!(w.counters().refused, 3);
+    assert!(w.note().starts_with("plan refused"));
+    // A plan the legs refuse as a whole is refused too.
+    let legs = |_: &Pattern| Err(GaitError::Limit("row 3, joint left_knee: too fast".into()));
+    assert!(matches!(
+        w.on_plan(&p, 0.0, &ok, &legs),
+        Verdict::Refused(_)
+    ));
+    // Standing where it stood.
+    let end = w.pattern().timeline.end;
+    assert!(w.standing(end));
+}
+
+#[test]
+fn a_stop_command_stands_the_robot_and_plans_wait_for_a_resume() {
+    let mut w = walker();
+    let p = plan_from(&w, 0.0, 0, 6, 0);
+    w.on_plan(&p, 0.0, &ok, &any);
+    let s2 = w.pattern().timeline.steps[1].clone();
+    w.stop(s2.start);
+    assert!(w.is_stopped());
+    let tl = w.pattern().timeline.clone();
+    assert!(tl.steps.len() < 6, "the plan's later steps are dropped");
+    let feet = tl.feet_end;
+    assert!(
+        ((feet[0][1] - feet[1][1]).abs() - 0.2).abs() < 1e-9,
+        "{feet:?}"
+    );
+    let n = w.counter(tl.end).number;
+    let again = plan_from(&w, tl.end, n, 3, 0);
+    assert_eq!(w.on_plan(&again, tl.end, &ok, &any), Verdict::Stopped);
+    w.resume();
+    let v = w.on_plan(&again, tl.end, &ok, &any);
+    assert!(matches!(v, Verdict::Taken(_)), "{v:?}");
+    let _ = straight;
+}
