@@ -56,6 +56,8 @@ pub struct HexGaitConfig {
     pub swing_height: f64,
     /// The sensing lift, m.
     pub sensing_lift: f64,
+    /// The feet's reach for the sensing lift (lifted, the legs reach less far), m.
+    pub sensing_reach: f64,
     /// The sensing lift's duration each way, s.
     pub sensing_time: f64,
     /// The smallest static stability margin, m.
@@ -70,13 +72,14 @@ impl Default for HexGaitConfig {
     fn default() -> HexGaitConfig {
         HexGaitConfig {
             period: 0.02,
-            reach: 0.152,
-            height: 0.09,
-            stride: 0.05,
+            reach: 0.195,
+            height: 0.08,
+            stride: 0.04,
             cycle: 1.0,
             wave_swing: 0.5,
-            swing_height: 0.03,
+            swing_height: 0.02,
             sensing_lift: 0.07,
+            sensing_reach: 0.175,
             sensing_time: 1.0,
             min_margin: 0.02,
             com: [0.0, 0.0, 0.0],
@@ -263,16 +266,48 @@ impl HexGait {
         (configs, trans)
     }
 
-    /// The sensing lift from `from`: up by the configured lift with every foot down, then
-    /// back.
+    /// The sensing lift from standing at `from`: the legs step in to the sensing reach one at
+    /// a time (a leg lifted that far up reaches less far out), the body rises by the
+    /// configured lift with every foot down, comes down again, and the legs step back out.
     pub fn sensing_lift(&self, from: &HexConfig) -> (Vec<HexConfig>, Vec<Transition>) {
-        let mut up = *from;
+        const ORDER: [u8; 6] = [5, 6, 1, 4, 3, 2];
+        let mut configs = vec![*from];
+        let mut trans = Vec::new();
+        let mut cur = *from;
+        let step = |leg: u8, reach: f64| {
+            let l = self.robot.leg(leg).expect("legs 1 to 6");
+            to_world(
+                &from.body,
+                Hexapod::to_body(l, [reach, 0.0, -self.cfg.height]),
+            )
+        };
+        for &leg in &ORDER {
+            cur.feet[leg as usize - 1] = step(leg, self.cfg.sensing_reach);
+            configs.push(cur);
+            trans.push(Transition {
+                swing: vec![leg],
+                duration: self.cfg.wave_swing,
+            });
+        }
+        let mut up = cur;
         up.body[2] += self.cfg.sensing_lift;
-        let t = Transition {
+        let hold = Transition {
             swing: Vec::new(),
             duration: self.cfg.sensing_time,
         };
-        (vec![*from, up, *from], vec![t.clone(), t])
+        configs.push(up);
+        trans.push(hold.clone());
+        configs.push(cur);
+        trans.push(hold);
+        for &leg in &ORDER {
+            cur.feet[leg as usize - 1] = step(leg, self.cfg.reach);
+            configs.push(cur);
+            trans.push(Transition {
+                swing: vec![leg],
+                duration: self.cfg.wave_swing,
+            });
+        }
+        (configs, trans)
     }
 
     /// A foothold plan's configurations, checked to change one foot at a time (the thesis's
