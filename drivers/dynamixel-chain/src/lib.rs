@@ -178,6 +178,22 @@ impl Joint {
         }
     }
 
+    /// The speed written at start, the model's units: the joint's speed limit.
+    fn setup_speed(&self) -> i64 {
+        let rpm = self.cfg.max_velocity * 60.0 / std::f64::consts::TAU;
+        let speed = ((rpm / self.model.velocity_unit_rpm).floor() as i64).max(1);
+        let item = match self.model.protocol {
+            Protocol::V1 => "moving_speed",
+            Protocol::V2 => "profile_velocity",
+        };
+        let max = self
+            .model
+            .item(item)
+            .and_then(|i| i.max)
+            .unwrap_or(i64::MAX);
+        speed.min(max)
+    }
+
     /// Counts of joint angle `rad`.
     pub fn counts(&self, rad: f64) -> i64 {
         let d = self.cfg.direction as f64;
@@ -262,6 +278,9 @@ pub struct Chain<T: Transport> {
     cfg: ChainConfig,
     joints: Vec<Joint>,
     goals: Vec<i64>,
+    /// Each servo's speed for the move to its goal (moving speed or profile velocity, in the
+    /// model's units), when the last command gave one.
+    speeds: Vec<Option<i64>>,
     measured: Vec<Measured>,
     read: ReadMany,
     last_command: Option<Instant>,
@@ -304,6 +323,7 @@ impl<T: Transport> Chain<T> {
         Ok(Chain {
             bus: Bus::new(line, bus_cfg),
             goals: joints.iter().map(|j| j.model.center()).collect(),
+            speeds: vec![None; n],
             joints,
             measured: vec![Measured::default(); n],
             read,
@@ -390,8 +410,7 @@ impl<T: Transport> Chain<T> {
 
     fn setup(&mut self, k: usize, j: &Joint) -> Result<(), BusError> {
         let (a, b) = (j.counts(j.cfg.min_position), j.counts(j.cfg.max_position));
-        let rpm = j.cfg.max_velocity * 60.0 / std::f64::consts::TAU;
-        let speed = ((rpm / j.model.velocity_unit_rpm).floor() as i64).max(1);
+        let speed = j.setup_speed();
         let speed_item = match j.model.protocol {
             Protocol::V1 => "moving_speed",
             Protocol::V2 => "profile_velocity",
@@ -401,10 +420,7 @@ impl<T: Transport> Chain<T> {
             ("return_delay_time", (self.cfg.return_delay_us / 2) as i64),
             ("min_position_limit", a.min(b)),
             ("max_position_limit", a.max(b)),
-            (
-                speed_item,
-                speed.min(j.item(speed_item)?.max.unwrap_or(i64::MAX)),
-            ),
+            (speed_item, speed),
         ];
         if j.model.item("bus_watchdog").is_some() {
             // 0 first: it clears a watchdog that tripped while the host was away.
@@ -449,6 +465,19 @@ impl<T: Transport> Chain<T> {
         )?;
         for (k, &j) in cols.iter().enumerate() {
             self.goals[j] = self.joints[j].counts(positions[k]);
+            // A speed given: the servo moves at it (rounded up, so it arrives in time; at
+            // least one unit, which is the slowest; 0 would mean no speed control at all).
+            let v = velocities.get(k).copied().unwrap_or(0.0).abs();
+            let joint = &self.joints[j];
+            self.speeds[j] = (v > 0.0).then(|| {
+                let units =
+                    (v * 60.0 / std::f64::consts::TAU / joint.model.velocity_unit_rpm).ceil();
+                let top = (joint.cfg.max_velocity * 60.0
+                    / std::f64::consts::TAU
+                    / joint.model.velocity_unit_rpm)
+                    .floor();
+                units.clamp(1.0, top.max(1.0)) as i64
+            });
         }
         self.last_command = Some(now);
         self.holding = false;
@@ -483,13 +512,41 @@ impl<T: Transport> Chain<T> {
     /// One cycle: the goals in one sync write, then every servo's state read.
     pub fn cycle(&mut self, now: Instant) -> Result<(), BusError> {
         let goal = self.joints[0].item("goal_position")?;
-        let data = self
-            .joints
-            .iter()
-            .zip(&self.goals)
-            .map(|(j, g)| (j.cfg.id, goal.encode(*g)))
-            .collect();
-        self.bus.sync_write(goal.address, goal.size as u16, data)?;
+        if self.speeds.iter().any(Option::is_some) {
+            // Goals and speeds in one sync write: the two items are neighbours (Protocol 1.0:
+            // goal position then moving speed; 2.0: profile velocity then goal position). A
+            // servo without a speed keeps the one set at start.
+            let speed = self.joints[0].item(match self.joints[0].model.protocol {
+                Protocol::V1 => "moving_speed",
+                Protocol::V2 => "profile_velocity",
+            })?;
+            let start = goal.address.min(speed.address);
+            let len = goal.size as u16 + speed.size as u16;
+            let data = self
+                .joints
+                .iter()
+                .enumerate()
+                .map(|(k, j)| {
+                    let v = self.speeds[k].unwrap_or_else(|| j.setup_speed());
+                    let (g, s) = (goal.encode(self.goals[k]), speed.encode(v));
+                    let bytes = if goal.address < speed.address {
+                        [g, s].concat()
+                    } else {
+                        [s, g].concat()
+                    };
+                    (j.cfg.id, bytes)
+                })
+                .collect();
+            self.bus.sync_write(start, len, data)?;
+        } else {
+            let data = self
+                .joints
+                .iter()
+                .zip(&self.goals)
+                .map(|(j, g)| (j.cfg.id, goal.encode(*g)))
+                .collect();
+            self.bus.sync_write(goal.address, goal.size as u16, data)?;
+        }
         // One contiguous block holds position, velocity, load or current, voltage and
         // temperature on every shipped model.
         let j0 = self.joints[0].clone();

@@ -389,3 +389,34 @@ fn a_bus_watchdog_off_the_20_ms_grid_is_refused_not_shortened() {
         assert!(watchdog_units(bad).is_err(), "{bad:?}");
     }
 }
+
+#[test]
+fn a_commanded_speed_becomes_the_servos_moving_speed() {
+    // The gait gives each servo the speed that brings it to its goal within the control
+    // period: it goes out with the goal (one sync write of both items), rounded up to the
+    // model's unit; a servo commanded without one keeps the speed set at start.
+    for file in ["hexapod-dynamixel.toml", "arm-xm430.toml"] {
+        let c = cfg(shipped(file));
+        let mut s = sim(c.clone(), None);
+        s.chain.bring_up().unwrap();
+        let j: Vec<_> = s.chain.joints().iter().map(|j| j.cfg.clone()).collect();
+        let names: Vec<String> = j[..3].iter().map(|j| j.name.clone()).collect();
+        s.chain
+            .command(&names, &[0.1, -0.1, 0.05], &[1.0, 2.0, 0.0], Instant::now())
+            .unwrap();
+        s.chain.cycle(Instant::now()).unwrap();
+        let fakes = s.end().unwrap();
+        let model = models::by_name(&j[0].model).unwrap();
+        let (item, unit) = match model.protocol {
+            stride_dynamixel::Protocol::V1 => ("moving_speed", model.velocity_unit_rpm),
+            stride_dynamixel::Protocol::V2 => ("profile_velocity", model.velocity_unit_rpm),
+        };
+        let want = |v: f64| (v * 60.0 / std::f64::consts::TAU / unit).ceil() as i64;
+        let servo = |id: u8| fakes.servos().iter().find(|s| s.id() == id).unwrap();
+        assert_eq!(servo(j[0].id).item(item), want(1.0), "{file}");
+        assert_eq!(servo(j[1].id).item(item), want(2.0), "{file}");
+        let setup =
+            ((j[2].max_velocity * 60.0 / std::f64::consts::TAU / unit).floor() as i64).max(1);
+        assert_eq!(servo(j[2].id).item(item), setup, "{file}");
+    }
+}

@@ -275,20 +275,23 @@ impl ArchieGait {
             pelvises.push(pelvis);
             times.push(s.t - pat.timeline.start);
         }
-        // Velocities: central differences, at rest at both ends of a pattern that starts and
-        // ends at rest (its first and last samples stand still).
+        // Velocities: central differences; one-sided (second order) at the ends, which a
+        // pattern from standing has at rest and a pattern replacing another in motion.
         let n = pos.len();
+        let d = |i: usize, l: usize, j: usize| -> f64 {
+            let p = |k: usize| pos[k][l][j];
+            if n < 3 {
+                0.0
+            } else if i == 0 {
+                (-3.0 * p(0) + 4.0 * p(1) - p(2)) / (times[2] - times[0])
+            } else if i + 1 == n {
+                (3.0 * p(n - 1) - 4.0 * p(n - 2) + p(n - 3)) / (times[n - 1] - times[n - 3])
+            } else {
+                (p(i + 1) - p(i - 1)) / (times[i + 1] - times[i - 1])
+            }
+        };
         let vel: Vec<[Q; 2]> = (0..n)
-            .map(|i| {
-                if i == 0 || i + 1 == n {
-                    [[0.0; 6]; 2]
-                } else {
-                    let h = times[i + 1] - times[i - 1];
-                    std::array::from_fn(|l| {
-                        std::array::from_fn(|j| (pos[i + 1][l][j] - pos[i - 1][l][j]) / h)
-                    })
-                }
-            })
+            .map(|i| std::array::from_fn(|l| std::array::from_fn(|j| d(i, l, j))))
             .collect();
         let plan = JointPlan {
             times,
