@@ -277,11 +277,17 @@ impl Walker {
         Ok(())
     }
 
-    /// The time a change decided at `now` takes over, and the state there.
+    /// The time a change decided at `now` takes over, and the state there (past the
+    /// pattern's end, standing still there, at that time).
     fn switch(&self, now: f64) -> (usize, Start) {
         let t = now + self.cfg.switch_ahead;
         let k = self.pattern.index_at(t);
-        (k, self.pattern.state_at(k))
+        let mut start = self.pattern.state_at(k);
+        if t > start.t + self.pattern.dt {
+            start.t = t;
+            start.under_way = None;
+        }
+        (k, start)
     }
 
     /// The footsteps of the current pattern not started yet at sample `k` (the step under

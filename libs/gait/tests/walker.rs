@@ -47,8 +47,7 @@ fn plan_from(w: &Walker, t: f64, echo: i64, n: usize, pad: usize) -> Plan {
     let last = tl
         .steps
         .iter()
-        .filter(|s| s.footstep.number <= echo)
-        .last()
+        .rfind(|s| s.footstep.number <= echo)
         .map(|s| s.footstep.side);
     let mut side = last.map_or(Side::Left, Side::other);
     let mut steps = Vec::new();

@@ -1,0 +1,928 @@
+//! The walking controller as an app: its command line and its loop.
+
+use std::cell::RefCell;
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::mpsc::Receiver;
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use stride_gait::archie::{ArchieGait, JointPlan};
+use stride_gait::hexapod::{HexConfig, HexGait, HexRow};
+use stride_gait::pattern::{Generator, Pattern};
+use stride_gait::support::Sole;
+use stride_gait::timeline::Footstep;
+use stride_gait::walker::{Verdict, Walker};
+use stride_gait::GaitError;
+use stride_kinematics::archie::{ArchieConfig, Leg};
+use stride_kinematics::hexapod::Hexapod;
+use stride_lcmtypes::stride::{
+    FootstepPlanT, GaitCommandT, ImuT, JointStateT, NodeStatusT, TrajectoryStatusT,
+};
+use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
+
+use crate::{command_msg, counter_msg, min_jerk, plan_of, trajectory_msg, GaitConfig, Robot};
+
+/// The walking controller.
+///
+/// Archie: takes footstep plans (stride.footstep_plan_t) in step with a replanning planner:
+/// it publishes its step counter (stride.step_counter_t), takes the newest plan whose echoed
+/// step number is the step under way, steps in place while the plan for the next step is
+/// late, stands at the goal, and brings its feet together and stands when no valid plan comes
+/// for a while or on a stop command (stride.gait_command_t). Each plan becomes a COM, ZMP and
+/// swing pattern (ZMP preview control, the ZMP a centimetre inside the soles, step times
+/// stretched where needed) and joint trajectories through the legs' kinematics, checked
+/// against the joints' position, speed and acceleration limits: a plan that fails anywhere is
+/// refused whole, with its reason in the gait's status (stride.trajectory_status_t) and a
+/// counter. The joints go out as PVT trajectory chunks (stride-elmo-bridge) and position
+/// set-points (stride-arduino-link). Before the first step the joints are brought from where
+/// they are measured to the standing pose; a joint further from the pattern than a tolerance
+/// stops the walk and says so.
+///
+/// The hexapod: walks straight ahead (tripod or wave gait) and the sensing lift on command,
+/// each servo's goal and moving speed every control period (stride-dynamixel-bridge).
+///
+/// See config/gait-archie.toml and config/gait-hexapod.toml.
+#[derive(clap::Parser, Debug)]
+#[command(name = "stride-gait", version, about, long_about)]
+pub struct Cli {
+    #[command(flatten)]
+    node: NodeArgs,
+}
+
+stride_node::node_cli!(Cli);
+
+impl Cli {
+    /// The configuration file given.
+    pub fn config_file(&self) -> Option<&Path> {
+        self.node.config.as_deref()
+    }
+}
+
+impl AppConfig for GaitConfig {
+    const USE: ConfigUse = ConfigUse::Required(
+        "the robot and its joints' channels; see config/gait-archie.toml, config/gait-hexapod.toml",
+    );
+    fn check(&self) -> Result<(), String> {
+        GaitConfig::check(self)
+    }
+}
+
+/// A group of joints: its names, where they go, what was measured.
+struct Group {
+    name: String,
+    joints: Vec<String>,
+    trajectory: Option<String>,
+    command: Option<String>,
+    states: Option<(lcm::Subscription, Receiver<JointStateT>)>,
+    /// The last measured position of each joint, and when.
+    measured: BTreeMap<String, (f64, Instant)>,
+    stamper: Stamper,
+}
+
+impl Group {
+    fn take_states(&mut self, now: Instant) {
+        if let Some((_, rx)) = &self.states {
+            while let Ok(s) = rx.try_recv() {
+                for (n, p) in s.names.iter().zip(&s.positions) {
+                    if p.is_finite() {
+                        self.measured.insert(n.clone(), (*p, now));
+                    }
+                }
+            }
+        }
+    }
+
+    /// The largest distance of the fresh measurements from `q` (joint order), and the joint.
+    fn off(&self, q: &[f64], now: Instant) -> Option<(f64, String)> {
+        self.states.as_ref()?;
+        self.joints
+            .iter()
+            .zip(q)
+            .filter_map(|(n, want)| {
+                let (p, at) = self.measured.get(n)?;
+                (now.saturating_duration_since(*at) < Duration::from_millis(500))
+                    .then(|| ((p - want).abs(), n.clone()))
+            })
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+    }
+
+    /// Every joint measured, recently.
+    fn all_measured(&self, now: Instant) -> bool {
+        self.states.is_none()
+            || self.joints.iter().all(|n| {
+                self.measured.get(n).is_some_and(|(_, at)| {
+                    now.saturating_duration_since(*at) < Duration::from_millis(500)
+                })
+            })
+    }
+
+    fn position(&self, joint: &str) -> Option<f64> {
+        self.measured.get(joint).map(|m| m.0)
+    }
+}
+
+/// Rows of joints in time (walker time, s): positions and velocities per group, in group
+/// order.
+struct Rows {
+    /// When each row plays, walker time.
+    times: Vec<f64>,
+    /// Per group: a row of its joints per time.
+    pos: Vec<Vec<Vec<f64>>>,
+    vel: Vec<Vec<Vec<f64>>>,
+}
+
+impl Rows {
+    fn of_plan(start: f64, plan: &JointPlan, stab: [f64; 2]) -> Rows {
+        let leg = |rows: &stride_gait::archie::LegRows| -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+            (
+                rows.positions
+                    .iter()
+                    .map(|q| {
+                        let mut q = q.to_vec();
+                        q[1] += stab[0];
+                        q[2] += stab[1];
+                        q
+                    })
+                    .collect(),
+                rows.velocities.iter().map(|v| v.to_vec()).collect(),
+            )
+        };
+        let (lp, lv) = leg(&plan.left);
+        let (rp, rv) = leg(&plan.right);
+        Rows {
+            times: plan.times.iter().map(|t| start + t).collect(),
+            pos: vec![lp, rp],
+            vel: vec![lv, rv],
+        }
+    }
+
+    fn hexapod(start: f64, rows: &[HexRow]) -> Rows {
+        Rows {
+            times: rows.iter().map(|r| start + r.t).collect(),
+            pos: vec![rows
+                .iter()
+                .map(|r| {
+                    r.servo_deg
+                        .iter()
+                        .flatten()
+                        .map(|d| d.to_radians())
+                        .collect()
+                })
+                .collect()],
+            vel: vec![rows
+                .iter()
+                .map(|r| r.speed.iter().flatten().copied().collect())
+                .collect()],
+        }
+    }
+
+    fn hold(t: f64, q: &[Vec<f64>]) -> Rows {
+        Rows {
+            times: vec![t],
+            pos: q.iter().map(|g| vec![g.clone()]).collect(),
+            vel: q.iter().map(|g| vec![vec![0.0; g.len()]]).collect(),
+        }
+    }
+
+    fn end(&self) -> f64 {
+        self.times.last().copied().unwrap_or(0.0)
+    }
+
+    /// Positions and velocities of group `g` at walker time `t` (between rows, linear; held
+    /// past the ends).
+    fn at(&self, g: usize, t: f64) -> (Vec<f64>, Vec<f64>) {
+        let i = self.times.partition_point(|&x| x <= t);
+        if i == 0 {
+            return (self.pos[g][0].clone(), vec![0.0; self.pos[g][0].len()]);
+        }
+        if i >= self.times.len() {
+            let l = self.times.len() - 1;
+            return (self.pos[g][l].clone(), vec![0.0; self.pos[g][l].len()]);
+        }
+        let (a, b) = (i - 1, i);
+        let s = (t - self.times[a]) / (self.times[b] - self.times[a]);
+        let mix = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p + s * (q - p)).collect();
+        (
+            mix(&self.pos[g][a], &self.pos[g][b]),
+            mix(&self.vel[g][a], &self.vel[g][b]),
+        )
+    }
+}
+
+/// What the gait is doing.
+#[derive(Debug, Clone, PartialEq)]
+enum Phase {
+    /// Waiting for the joints' states, since then.
+    Waiting(f64),
+    /// Moving into the standing pose, until then.
+    Posing(f64),
+    /// Walking or standing on patterns.
+    Ready,
+    /// Stopped for good, and why.
+    Fault(String),
+}
+
+enum Body {
+    Archie {
+        legs: Box<ArchieGait>,
+        walker: Box<Walker>,
+        /// The joints of the walker's pattern.
+        joints: Box<JointPlan>,
+        plans: Receiver<FootstepPlanT>,
+        _plans_sub: lcm::Subscription,
+    },
+    Hexapod {
+        gait: Box<HexGait>,
+        /// Where the robot stands when the walk under way ends.
+        at: HexConfig,
+    },
+}
+
+/// The running gait.
+pub struct GaitApp {
+    cfg: GaitConfig,
+    body: Body,
+    groups: Vec<Group>,
+    commands: Receiver<GaitCommandT>,
+    _commands_sub: lcm::Subscription,
+    imu: Option<(lcm::Subscription, Receiver<ImuT>)>,
+    attitude: Option<[f64; 2]>,
+    /// Walker time 0: the node's start, on the monotonic and the system clock.
+    t0: Instant,
+    utime0: i64,
+    phase: Phase,
+    /// The rows being played, and the index of the last row sent to the trajectory bridges
+    /// (None: nothing of them sent yet: the next chunk replaces).
+    rows: Rows,
+    sent: Option<usize>,
+    /// Rows not to be sent to trajectory bridges (they stand still already).
+    quiet: bool,
+    period: Period,
+    counter_period: Period,
+    status_period: Period,
+    counter_stamper: Stamper,
+    status_stamper: Stamper,
+    status: TrajectoryStatusT,
+    status_changed: bool,
+}
+
+fn now_utime() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as i64)
+}
+
+impl GaitApp {
+    /// Loads the robot, builds the gait and subscribes.
+    pub fn start(
+        node: &Node,
+        cfg: GaitConfig,
+        config_file: Option<&Path>,
+    ) -> anyhow::Result<GaitApp> {
+        let robot_path = cfg.robot_path(config_file);
+        let (body, groups) = match cfg.robot {
+            Robot::Archie => {
+                let robot = ArchieConfig::load(&robot_path)
+                    .with_context(|| format!("robot file {}", robot_path.display()))?;
+                let p = &cfg.pattern;
+                let mut legs =
+                    ArchieGait::new(robot.clone(), &p.height, cfg.zmp_ahead, 0.01, p.whole_body)
+                        .map_err(|e| anyhow::anyhow!("{e}"))?;
+                if let Some(z) = p.z_c {
+                    legs.z_c = z;
+                }
+                let mut timing = p.timing;
+                timing.zmp_ahead = cfg.zmp_ahead;
+                let pattern = crate::PatternSection {
+                    timing,
+                    ..p.clone()
+                }
+                .config(
+                    legs.z_c,
+                    Sole {
+                        length: robot.foot.length,
+                        width: robot.foot.width,
+                    },
+                );
+                let gen = Generator::new(pattern).map_err(|e| anyhow::anyhow!("{e}"))?;
+                let [x, y, yaw] = cfg.start;
+                let w = cfg.walker.stance_width / 2.0;
+                let (s, c) = yaw.sin_cos();
+                let left = [x - s * w, y + c * w, 0.0, yaw];
+                let right = [x + s * w, y - c * w, 0.0, yaw];
+                let walker = Walker::new(gen, cfg.walker, 0.0, left, right, 0)
+                    .map_err(|e| anyhow::anyhow!("{e}"))?;
+                // The standing pose must be within the legs' reach and limits (a COM height
+                // set by hand, the thesis's 0.72 m, is not).
+                let joints = legs.joints(walker.pattern()).map_err(|e| {
+                    anyhow::anyhow!(
+                        "the gait's standing pose (COM {:.3} m high) is out of the legs' reach: {e}",
+                        legs.z_c
+                    )
+                })?;
+                let (sub, rx) = node.queue::<FootstepPlanT>(&cfg.plan_channel)?;
+                let mut groups = Vec::new();
+                for leg in [Leg::Left, Leg::Right] {
+                    if let Some(ch) = cfg.joints.get(leg.name()) {
+                        groups.push((leg.name().to_string(), robot.names(leg).to_vec(), ch));
+                    }
+                }
+                (
+                    Body::Archie {
+                        legs: Box::new(legs),
+                        walker: Box::new(walker),
+                        joints: Box::new(joints),
+                        plans: rx,
+                        _plans_sub: sub,
+                    },
+                    groups,
+                )
+            }
+            Robot::Hexapod => {
+                let robot = Hexapod::load(&robot_path)
+                    .with_context(|| format!("robot file {}", robot_path.display()))?;
+                let names: Vec<String> = (1..=6u8)
+                    .flat_map(|n| {
+                        let leg = robot.leg(n).expect("six legs").name.clone();
+                        ["coxa", "femur", "tibia"].map(move |j| format!("{leg}_{j}"))
+                    })
+                    .collect();
+                let gait = HexGait::new(robot, cfg.hexapod).map_err(|e| anyhow::anyhow!("{e}"))?;
+                let [x, y, yaw] = cfg.start;
+                let at = gait.standing([x, y, 0.0, yaw]);
+                let ch = cfg.joints.get("all").expect("checked: the hexapod's group");
+                (
+                    Body::Hexapod {
+                        gait: Box::new(gait),
+                        at,
+                    },
+                    vec![("all".to_string(), names, ch)],
+                )
+            }
+        };
+        let groups = groups
+            .into_iter()
+            .map(|(name, joints, ch)| -> anyhow::Result<Group> {
+                Ok(Group {
+                    stamper: Stamper::new(""),
+                    states: match &ch.state {
+                        Some(c) => Some(node.queue::<JointStateT>(c)?),
+                        None => None,
+                    },
+                    name,
+                    joints,
+                    trajectory: ch.trajectory.clone(),
+                    command: ch.command.clone(),
+                    measured: BTreeMap::new(),
+                })
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let (csub, crx) = node.queue::<GaitCommandT>(&cfg.command_channel)?;
+        let imu = match &cfg.imu_channel {
+            Some(c) => Some(node.queue::<ImuT>(c)?),
+            None => None,
+        };
+        node.set_health(
+            NodeStatusT::STATE_STARTING,
+            "waiting for the joints' states",
+        );
+        let stand = standing_rows(&body, groups.len());
+        Ok(GaitApp {
+            period: Period::hz(cfg.rate_hz),
+            counter_period: Period::hz(cfg.step_counter_rate_hz),
+            status_period: Period::hz(1.0),
+            counter_stamper: Stamper::new(""),
+            status_stamper: Stamper::new(""),
+            status: TrajectoryStatusT {
+                node: node.name().to_string(),
+                state: TrajectoryStatusT::STATE_IDLE,
+                last_refused_sequence: -1,
+                last_accepted_sequence: -1,
+                ..Default::default()
+            },
+            status_changed: true,
+            cfg,
+            body,
+            groups,
+            commands: crx,
+            _commands_sub: csub,
+            imu,
+            attitude: None,
+            t0: Instant::now(),
+            utime0: now_utime(),
+            phase: Phase::Waiting(0.0),
+            rows: stand,
+            sent: None,
+            quiet: true,
+        })
+    }
+}
+
+/// The rows of standing still (Archie's walker's pattern, the hexapod's stance), held.
+fn standing_rows(body: &Body, groups: usize) -> Rows {
+    match body {
+        Body::Archie { joints, walker, .. } => {
+            let mut r = Rows::of_plan(walker.pattern().timeline.start, joints, [0.0; 2]);
+            r.pos.truncate(groups.max(2));
+            r
+        }
+        Body::Hexapod { gait, at } => {
+            let t = stride_gait::hexapod::Transition {
+                swing: Vec::new(),
+                duration: gait.cfg.period,
+            };
+            match gait.rows(&[*at, *at], &[t], None) {
+                Ok(rows) => Rows::hexapod(0.0, &rows[..1]),
+                Err(_) => Rows::hold(0.0, &[vec![0.0; 18]]),
+            }
+        }
+    }
+}
+
+impl GaitApp {
+    /// Walker time of `now`, s.
+    fn time(&self, now: Instant) -> f64 {
+        now.saturating_duration_since(self.t0).as_secs_f64()
+    }
+
+    /// The groups' rows in the walker's pattern's joint order (Archie: left, right; the rows
+    /// hold both legs whichever groups are configured).
+    fn group_index(&self, g: usize) -> usize {
+        match self.body {
+            Body::Archie { .. } => {
+                if self.groups[g].name == "left" {
+                    0
+                } else {
+                    1
+                }
+            }
+            Body::Hexapod { .. } => 0,
+        }
+    }
+
+    fn set_status(&mut self, state: i8, reason: impl Into<String>) {
+        let reason = reason.into();
+        if self.status.state != state || self.status.reason != reason {
+            self.status.state = state;
+            self.status.reason = reason;
+            self.status_changed = true;
+        }
+    }
+
+    fn refused(&mut self, why: String) {
+        tracing::warn!("plan refused: {why}");
+        self.status.refused += 1;
+        self.status.last_refusal = why;
+        self.status_changed = true;
+    }
+
+    /// Plays the walker's new pattern: its joints from its start.
+    fn adopt(&mut self, plan: JointPlan) {
+        let stab = self.stabiliser_now();
+        if let Body::Archie { walker, joints, .. } = &mut self.body {
+            self.rows = Rows::of_plan(walker.pattern().timeline.start, &plan, stab);
+            **joints = plan;
+            self.sent = None;
+            self.quiet = false;
+        }
+    }
+
+    fn stabiliser_now(&self) -> [f64; 2] {
+        match self.attitude {
+            Some(a) => self.cfg.stabiliser.correction(a),
+            None => [0.0; 2],
+        }
+    }
+
+    fn take_imu(&mut self) {
+        if let Some((_, rx)) = &self.imu {
+            while let Ok(m) = rx.try_recv() {
+                if let Some(a) = crate::Stabiliser::attitude(&m) {
+                    self.attitude = Some(a);
+                }
+            }
+        }
+    }
+
+    fn take_commands(&mut self, node: &Node, t: f64) {
+        while let Ok(c) = self.commands.try_recv() {
+            match (c.command, &mut self.body) {
+                (GaitCommandT::COMMAND_STOP, Body::Archie { walker, legs, .. }) => {
+                    tracing::info!("stop: {}", c.reason);
+                    walker.stop(t);
+                    match legs.joints(walker.pattern()) {
+                        Ok(j) => self.adopt(j),
+                        Err(e) => self.fault(node, format!("stopping: {e}")),
+                    }
+                    self.set_status(
+                        TrajectoryStatusT::STATE_STOPPED,
+                        format!("stopped by command: {}", c.reason),
+                    );
+                    self.status.recovery = "a resume command (stride.gait_command_t)".into();
+                }
+                (GaitCommandT::COMMAND_RESUME, Body::Archie { walker, .. }) => {
+                    walker.resume();
+                    self.status.recovery.clear();
+                    self.set_status(TrajectoryStatusT::STATE_IDLE, "");
+                }
+                (GaitCommandT::COMMAND_STOP, Body::Hexapod { .. }) => {
+                    // Hold where the servos are now.
+                    let q: Vec<Vec<f64>> = (0..self.groups.len())
+                        .map(|g| self.rows.at(self.group_index(g), t).0)
+                        .collect();
+                    self.rows = Rows::hold(t, &q);
+                    self.set_status(
+                        TrajectoryStatusT::STATE_STOPPED,
+                        format!("stopped by command: {}", c.reason),
+                    );
+                }
+                (GaitCommandT::COMMAND_RESUME, Body::Hexapod { .. }) => {
+                    self.set_status(TrajectoryStatusT::STATE_IDLE, "");
+                }
+                (
+                    GaitCommandT::COMMAND_WALK | GaitCommandT::COMMAND_SENSE,
+                    Body::Hexapod { gait, at },
+                ) => {
+                    if self.phase != Phase::Ready || t < self.rows.end() {
+                        self.refused(format!(
+                            "command {}: the hexapod is not standing ready",
+                            c.command
+                        ));
+                        continue;
+                    }
+                    let (configs, trans) = match (c.command, c.gait) {
+                        (GaitCommandT::COMMAND_SENSE, _) => gait.sensing_lift(at),
+                        (_, GaitCommandT::GAIT_WAVE) if c.distance.is_finite() => {
+                            gait.wave(at, c.distance)
+                        }
+                        (_, GaitCommandT::GAIT_TRIPOD) if c.distance.is_finite() => {
+                            gait.tripod(at, c.distance)
+                        }
+                        _ => {
+                            self.refused(format!(
+                                "walk: gait {} over {} m is not a walk",
+                                c.gait, c.distance
+                            ));
+                            continue;
+                        }
+                    };
+                    match gait.rows(&configs, &trans, None) {
+                        Ok(rows) => {
+                            *at = *configs.last().expect("a walk has configurations");
+                            self.rows = Rows::hexapod(t + self.cfg.lookahead, &rows);
+                            self.status.accepted += 1;
+                            self.set_status(TrajectoryStatusT::STATE_MOVING, "");
+                        }
+                        Err(e) => self.refused(e.to_string()),
+                    }
+                }
+                (other, _) => tracing::warn!("command {other} is not for this robot"),
+            }
+        }
+    }
+
+    fn fault(&mut self, node: &Node, why: String) {
+        tracing::error!("{why}");
+        node.set_health(NodeStatusT::STATE_FAULT, why.clone());
+        self.set_status(TrajectoryStatusT::STATE_STOPPED, why.clone());
+        self.phase = Phase::Fault(why);
+    }
+
+    /// Waits for the joints' states, then starts from where they are.
+    fn wait(&mut self, node: &Node, t: f64, now: Instant, since: f64) {
+        if !self.groups.iter().all(|g| g.all_measured(now)) {
+            if t - since > 5.0 {
+                let missing: Vec<&str> = self
+                    .groups
+                    .iter()
+                    .filter(|g| !g.all_measured(now))
+                    .map(|g| g.name.as_str())
+                    .collect();
+                self.fault(node, format!("no joint states from {missing:?} for 5 s"));
+            }
+            return;
+        }
+        let stand: Vec<Vec<f64>> = (0..self.groups.len())
+            .map(|g| self.rows.at(self.group_index(g), self.rows.times[0]).0)
+            .collect();
+        let off = self
+            .groups
+            .iter()
+            .zip(&stand)
+            .filter_map(|(g, q)| g.off(q, now))
+            .max_by(|a, b| a.0.total_cmp(&b.0));
+        match off {
+            Some((d, joint)) if d > self.cfg.pose_tolerance => self.fault(
+                node,
+                format!(
+                    "{joint} is {d:.3} rad from the standing pose (at most {} rad is moved): \
+                     bring the robot near it",
+                    self.cfg.pose_tolerance
+                ),
+            ),
+            Some((d, _)) if d > self.cfg.start_tolerance => {
+                // Into the standing pose from where the joints are.
+                let from: Vec<Vec<f64>> = self
+                    .groups
+                    .iter()
+                    .zip(&stand)
+                    .map(|(g, q)| {
+                        g.joints
+                            .iter()
+                            .zip(q)
+                            .map(|(n, s)| g.position(n).unwrap_or(*s))
+                            .collect()
+                    })
+                    .collect();
+                let mut rows = Rows {
+                    times: Vec::new(),
+                    pos: Vec::new(),
+                    vel: Vec::new(),
+                };
+                let start = t + self.cfg.lookahead;
+                for (a, b) in from.iter().zip(&stand) {
+                    let (times, p, v) = min_jerk(a, b, self.cfg.pose_speed, 1.0, 0.01);
+                    rows.times = times.iter().map(|x| start + x).collect();
+                    rows.pos.push(p);
+                    rows.vel.push(v);
+                }
+                // Rows are per pattern group; Archie's hold both legs.
+                if let Body::Archie { .. } = self.body {
+                    let mut full = vec![Vec::new(), Vec::new()];
+                    for (g, p) in rows.pos.drain(..).enumerate() {
+                        full[self.group_index(g)] = p;
+                    }
+                    let mut fullv = vec![Vec::new(), Vec::new()];
+                    for (g, v) in rows.vel.drain(..).enumerate() {
+                        fullv[self.group_index(g)] = v;
+                    }
+                    for (k, r) in full.iter_mut().enumerate() {
+                        if r.is_empty() {
+                            *r = vec![self.rows.pos[k][0].clone(); rows.times.len()];
+                            fullv[k] = vec![vec![0.0; 6]; rows.times.len()];
+                        }
+                    }
+                    rows.pos = full;
+                    rows.vel = fullv;
+                }
+                let until = rows.end() + 0.2;
+                tracing::info!(
+                    "moving into the standing pose over {:.1} s (a joint {d:.3} rad away)",
+                    until - t
+                );
+                node.set_health(NodeStatusT::STATE_RUNNING, "moving into the standing pose");
+                self.rows = rows;
+                self.sent = None;
+                self.quiet = false;
+                self.phase = Phase::Posing(until);
+            }
+            _ => self.ready(node, t),
+        }
+    }
+
+    /// Standing in the pose: the walker starts now.
+    fn ready(&mut self, node: &Node, t: f64) {
+        if let Body::Archie {
+            legs,
+            walker,
+            joints,
+            ..
+        } = &mut self.body
+        {
+            let left = walker.pattern().timeline.feet_start[0];
+            let right = walker.pattern().timeline.feet_start[1];
+            let gen = walker.generator().clone();
+            match Walker::new(gen, self.cfg.walker, t, left, right, 0)
+                .map_err(|e| e.to_string())
+                .and_then(|w| {
+                    legs.joints(w.pattern())
+                        .map(|j| (w, j))
+                        .map_err(|e| e.to_string())
+                }) {
+                Ok((w, j)) => {
+                    **walker = w;
+                    **joints = j;
+                }
+                Err(e) => return self.fault(node, e),
+            }
+        }
+        self.rows = standing_rows(&self.body, self.groups.len());
+        if let Body::Hexapod { .. } = self.body {
+            self.rows.times = vec![t];
+        }
+        self.sent = None;
+        self.quiet = true;
+        self.phase = Phase::Ready;
+        node.set_running();
+        tracing::info!("standing, ready");
+    }
+
+    /// Takes plans and keeps the walk going (Archie).
+    fn walk(&mut self, node: &Node, t: f64, now: Instant) {
+        let Body::Archie {
+            legs,
+            walker,
+            plans,
+            ..
+        } = &mut self.body
+        else {
+            return;
+        };
+        let cache: RefCell<Option<JointPlan>> = RefCell::new(None);
+        let check = |p: &Pattern| -> Result<(), GaitError> {
+            let j = legs.joints(p)?;
+            *cache.borrow_mut() = Some(j);
+            Ok(())
+        };
+        let reach = |_: &Footstep, _: &[f64; 4]| -> Result<(), String> { Ok(()) };
+        let mut adopt: Option<JointPlan> = None;
+        let mut refusals = Vec::new();
+        let mut taken = 0;
+        while let Ok(msg) = plans.try_recv() {
+            let plan = match plan_of(&msg) {
+                Ok(p) => p,
+                Err(why) => {
+                    refusals.push(why);
+                    continue;
+                }
+            };
+            match walker.on_plan(&plan, t, &reach, &check) {
+                Verdict::Taken(first) => {
+                    tracing::debug!("plan for step {} taken: step {first} next", plan.echo);
+                    adopt = cache.borrow_mut().take();
+                    taken += 1;
+                }
+                Verdict::Refused(why) => {
+                    refusals.push(why);
+                    // The walker stands soon: its joints.
+                    adopt = legs.joints(walker.pattern()).ok();
+                }
+                Verdict::Late { echo, now } => {
+                    tracing::debug!("plan for step {echo} came during step {now}: dropped");
+                }
+                Verdict::Stopped => {
+                    tracing::debug!("plan ignored: stopped");
+                }
+            }
+        }
+        if walker.tick(t, &check) {
+            if let Some(j) = cache.borrow_mut().take() {
+                adopt = Some(j);
+            } else if let Ok(j) = legs.joints(walker.pattern()) {
+                adopt = Some(j);
+            }
+        }
+        let standing = walker.standing(t);
+        let stopped = walker.is_stopped();
+        for why in refusals {
+            self.refused(why);
+        }
+        if taken > 0 {
+            self.status.accepted += taken;
+            self.status_changed = true;
+        }
+        if let Some(j) = adopt {
+            self.adopt(j);
+        }
+        if !stopped {
+            self.set_status(
+                if standing {
+                    TrajectoryStatusT::STATE_IDLE
+                } else {
+                    TrajectoryStatusT::STATE_MOVING
+                },
+                "",
+            );
+        }
+        self.track(node, t, now);
+    }
+
+    /// A joint further from the pattern than the tolerance stops the walk.
+    fn track(&mut self, node: &Node, t: f64, now: Instant) {
+        if self.quiet {
+            return;
+        }
+        let at = t - self.cfg.track_lag;
+        if at < self.rows.times[0] {
+            return;
+        }
+        let worst = (0..self.groups.len())
+            .filter_map(|g| self.groups[g].off(&self.rows.at(self.group_index(g), at).0, now))
+            .max_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some((d, joint)) = worst {
+            if d > self.cfg.track_tolerance {
+                let why = format!(
+                    "{joint} is {d:.3} rad from where the pattern has it (at most {}): stopped",
+                    self.cfg.track_tolerance
+                );
+                if let Body::Archie { walker, legs, .. } = &mut self.body {
+                    walker.stop(t);
+                    if let Ok(j) = legs.joints(walker.pattern()) {
+                        self.adopt(j);
+                    }
+                }
+                node.set_health(NodeStatusT::STATE_DEGRADED, why.clone());
+                self.set_status(TrajectoryStatusT::STATE_STOPPED, why);
+            }
+        }
+    }
+
+    /// Sends the trajectory bridges the next chunks.
+    fn stream(&mut self, node: &Node, t: f64) -> anyhow::Result<()> {
+        if self.quiet || self.rows.times.len() < 2 {
+            return Ok(());
+        }
+        let n = ((self.cfg.chunk / 0.01).round() as usize).max(2);
+        loop {
+            let last = self.rows.times.len() - 1;
+            let (i0, append) = match self.sent {
+                Some(i) if i >= last => break,
+                Some(i) if self.rows.times[i] >= t + self.cfg.lookahead => break,
+                Some(i) => (i, true),
+                None => (0, false),
+            };
+            let i1 = (i0 + n).min(last);
+            for g in 0..self.groups.len() {
+                let Some(ch) = self.groups[g].trajectory.clone() else {
+                    continue;
+                };
+                let k = self.group_index(g);
+                let header = self.groups[g].stamper.stamp();
+                let m = trajectory_msg(
+                    header,
+                    &self.groups[g].joints,
+                    &self.rows.times[i0..=i1],
+                    &self.rows.pos[k][i0..=i1],
+                    &self.rows.vel[k][i0..=i1],
+                    self.utime0 + (self.rows.times[i0] * 1e6).round() as i64,
+                    append,
+                );
+                node.publisher().publish(&ch, &m)?;
+            }
+            self.sent = Some(i1);
+        }
+        Ok(())
+    }
+
+    /// Sends the set-point bridges the joints of now.
+    fn set_points(&mut self, node: &Node, t: f64) -> anyhow::Result<()> {
+        if !matches!(self.phase, Phase::Ready | Phase::Posing(_)) {
+            return Ok(());
+        }
+        for g in 0..self.groups.len() {
+            let Some(ch) = self.groups[g].command.clone() else {
+                continue;
+            };
+            let (p, v) = self.rows.at(self.group_index(g), t);
+            let header = self.groups[g].stamper.stamp();
+            let m = command_msg(header, &self.groups[g].joints, &p, &v);
+            node.publisher().publish(&ch, &m)?;
+        }
+        Ok(())
+    }
+}
+
+impl Tick for GaitApp {
+    const WAKE_ON_MESSAGE: bool = false;
+
+    fn tick(&mut self, node: &Node, now: Instant) -> anyhow::Result<Instant> {
+        let t = self.time(now);
+        for g in &mut self.groups {
+            g.take_states(now);
+        }
+        self.take_imu();
+        self.take_commands(node, t);
+        match self.phase.clone() {
+            Phase::Waiting(since) => self.wait(node, t, now, since),
+            Phase::Posing(until) if t >= until => self.ready(node, t),
+            Phase::Posing(_) => {}
+            Phase::Ready => self.walk(node, t, now),
+            Phase::Fault(_) => {}
+        }
+        self.stream(node, t)?;
+        self.set_points(node, t)?;
+        if self.counter_period.due(now) {
+            self.counter_period.next(now);
+            if let Body::Archie { walker, .. } = &self.body {
+                let m = counter_msg(self.counter_stamper.stamp(), &walker.counter(t));
+                node.publisher()
+                    .publish(&self.cfg.step_counter_channel, &m)?;
+            }
+        }
+        if self.status_changed || self.status_period.due(now) {
+            self.status_period.next(now);
+            self.status_changed = false;
+            self.status.header = self.status_stamper.stamp();
+            node.publisher()
+                .publish(&self.cfg.status_channel, &self.status)?;
+        }
+        Ok(self.period.next(now))
+    }
+
+    fn stop(self, _node: &Node) -> anyhow::Result<()> {
+        // The bridges stop their joints on their own when the stream ends (the Elmo bridge
+        // decelerates a chunk that ends in motion; the set-point bridges hold).
+        Ok(())
+    }
+}

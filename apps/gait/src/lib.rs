@@ -1,0 +1,563 @@
+//! `stride-gait`, the walking controller, as a library: its configuration, the messages it
+//! takes and sends turned into the gait's own types and back, the stabiliser hook and the move
+//! into the standing pose; the app itself is in [`app`].
+
+pub mod app;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use stride_gait::archie::HeightConfig;
+use stride_gait::hexapod::HexGaitConfig;
+use stride_gait::pattern::{Kind, PatternConfig, PlacementConfig};
+use stride_gait::preview::PreviewConfig;
+use stride_gait::support::Sole;
+use stride_gait::swing::SwingConfig;
+use stride_gait::timeline::{Footstep, Side, TimingConfig};
+use stride_gait::walker::{Plan, StepCounter, WalkerConfig};
+use stride_lcmtypes::stride::{
+    FootT, FootstepPlanT, HeaderT, ImuT, JointCommandT, JointTrajectoryT, StepCounterT,
+};
+
+/// Which robot the gait drives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Robot {
+    /// Archie: footstep plans, six joints a leg behind Elmo drives or Arduino boards.
+    Archie,
+    /// The hexapod: walks and the sensing lift on command, 18 Dynamixel servos.
+    Hexapod,
+}
+
+/// Where a group of joints is driven and read.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Channels {
+    /// Joint trajectories (stride.joint_trajectory_t) for a trajectory bridge
+    /// (stride-elmo-bridge), streamed in chunks.
+    pub trajectory: Option<String>,
+    /// Position set-points (stride.joint_command_t) for a set-point bridge
+    /// (stride-arduino-link, stride-dynamixel-bridge), one a control period.
+    pub command: Option<String>,
+    /// The joints' measured states (stride.joint_state_t).
+    pub state: Option<String>,
+}
+
+/// The pattern's parameters in the gait's file (the COM height and the sole come from the
+/// robot unless given).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PatternSection {
+    /// The COM generator: "preview" (the default) or "foot_placement".
+    #[serde(default = "preview_kind")]
+    pub generator: Kind,
+    /// The COM's height, m (absent: from the legs). The thesis's 0.72 m is out of Archie's
+    /// reach; the gait says so at start.
+    pub z_c: Option<f64>,
+    /// Gravity, m/s².
+    #[serde(default = "gravity")]
+    pub g: f64,
+    /// Preview control.
+    #[serde(default)]
+    pub preview: PreviewConfig,
+    /// The foot placement generator.
+    #[serde(default)]
+    pub placement: PlacementConfig,
+    /// Step timing.
+    #[serde(default)]
+    pub timing: TimingConfig,
+    /// The swing.
+    #[serde(default)]
+    pub swing: SwingConfig,
+    /// The smallest margin of the ZMP in the support polygon, m.
+    #[serde(default = "min_margin")]
+    pub min_margin: f64,
+    /// The pattern's COM is the whole robot's (the pelvis placed to carry it); otherwise the
+    /// pelvis centre's.
+    #[serde(default = "yes")]
+    pub whole_body: bool,
+    /// How the COM height is chosen.
+    #[serde(default)]
+    pub height: HeightConfig,
+}
+
+fn preview_kind() -> Kind {
+    Kind::Preview
+}
+
+fn gravity() -> f64 {
+    stride_gait::lipm::G
+}
+
+fn min_margin() -> f64 {
+    0.01
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl Default for PatternSection {
+    fn default() -> PatternSection {
+        toml::from_str("").expect("every field has a default")
+    }
+}
+
+impl PatternSection {
+    /// The library's pattern parameters for a COM height and a sole.
+    pub fn config(&self, z_c: f64, sole: Sole) -> PatternConfig {
+        PatternConfig {
+            generator: self.generator,
+            z_c,
+            g: self.g,
+            preview: self.preview,
+            placement: self.placement,
+            timing: self.timing,
+            swing: self.swing,
+            sole,
+            min_margin: self.min_margin,
+        }
+    }
+}
+
+/// The IMU hip-attitude stabiliser hook (the thesis's R23): a proportional baseline that tilts
+/// the support leg's hip against the pelvis's measured roll and pitch. Gains of 0 leave it
+/// out.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Stabiliser {
+    /// Hip roll correction per radian of pelvis roll.
+    pub roll_gain: f64,
+    /// Hip pitch correction per radian of pelvis pitch.
+    pub pitch_gain: f64,
+    /// The largest correction, rad.
+    pub max: f64,
+}
+
+impl Stabiliser {
+    /// The pelvis's roll and pitch from an IMU's orientation (w, x, y, z), rad; None when the
+    /// sensor gives none or a non-finite one.
+    pub fn attitude(imu: &ImuT) -> Option<[f64; 2]> {
+        let [w, x, y, z] = imu.orientation;
+        let n = (w * w + x * x + y * y + z * z).sqrt();
+        if !(n.is_finite() && n > 1e-6) {
+            return None;
+        }
+        let (w, x, y, z) = (w / n, x / n, y / n, z / n);
+        let roll = (2.0 * (w * x + y * z)).atan2(1.0 - 2.0 * (x * x + y * y));
+        let pitch = (2.0 * (w * y - z * x)).clamp(-1.0, 1.0).asin();
+        Some([roll, pitch])
+    }
+
+    /// The hip roll and pitch corrections for an attitude: −gain · error, each within ±max.
+    pub fn correction(&self, attitude: [f64; 2]) -> [f64; 2] {
+        [
+            (-self.roll_gain * attitude[0]).clamp(-self.max, self.max),
+            (-self.pitch_gain * attitude[1]).clamp(-self.max, self.max),
+        ]
+    }
+}
+
+/// `stride-gait`'s file (config/gait-archie.toml, config/gait-hexapod.toml).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GaitConfig {
+    /// The robot.
+    pub robot: Robot,
+    /// Its robot file (stride-kinematics), relative to this file's folder.
+    pub robot_file: PathBuf,
+    /// Footstep plans (stride.footstep_plan_t).
+    #[serde(default = "plan_channel")]
+    pub plan_channel: String,
+    /// Commands (stride.gait_command_t).
+    #[serde(default = "command_channel")]
+    pub command_channel: String,
+    /// The step counter (stride.step_counter_t).
+    #[serde(default = "step_counter_channel")]
+    pub step_counter_channel: String,
+    /// The gait's status (stride.trajectory_status_t: plans taken and refused, why it stands).
+    #[serde(default = "status_channel")]
+    pub status_channel: String,
+    /// The IMU on the pelvis (stride.imu_t), for the stabiliser.
+    pub imu_channel: Option<String>,
+    /// The control loop's rate, Hz.
+    #[serde(default = "rate")]
+    pub rate_hz: f64,
+    /// The step counter's rate, Hz.
+    #[serde(default = "counter_rate")]
+    pub step_counter_rate_hz: f64,
+    /// Trajectory chunks go out this far ahead of their play, s (more than the bridge's
+    /// lookahead).
+    #[serde(default = "lookahead")]
+    pub lookahead: f64,
+    /// A chunk's length, s.
+    #[serde(default = "chunk")]
+    pub chunk: f64,
+    /// The measured joints may be this far from the pattern's start and walk (rad).
+    #[serde(default = "start_tolerance")]
+    pub start_tolerance: f64,
+    /// Further than `start_tolerance`, but within this, the joints are first moved into the
+    /// standing pose (rad); further still, the gait reports and does not move.
+    #[serde(default = "pose_tolerance")]
+    pub pose_tolerance: f64,
+    /// ... at this speed, rad/s.
+    #[serde(default = "pose_speed")]
+    pub pose_speed: f64,
+    /// While walking: a joint this far from where the pattern has it (rad) stops the walk.
+    #[serde(default = "track_tolerance")]
+    pub track_tolerance: f64,
+    /// The joints' measurements lag the pattern by about this much (the bridges' queue), s.
+    #[serde(default = "track_lag")]
+    pub track_lag: f64,
+    /// Where the robot's centre stands at start (x, y m, heading rad), in the planner's frame.
+    #[serde(default)]
+    pub start: [f64; 3],
+    /// The joints' channels: Archie's legs "left" and "right", the hexapod's "all".
+    #[serde(default)]
+    pub joints: BTreeMap<String, Channels>,
+    /// The pattern (Archie).
+    #[serde(default)]
+    pub pattern: PatternSection,
+    /// The walk with the planner (Archie).
+    #[serde(default)]
+    pub walker: WalkerConfig,
+    /// The stabiliser (Archie).
+    #[serde(default)]
+    pub stabiliser: Stabiliser,
+    /// The hexapod's gaits.
+    #[serde(default)]
+    pub hexapod: HexGaitConfig,
+    /// Where the ZMP reference stands on a sole, ahead of its centre (Archie), m.
+    #[serde(default)]
+    pub zmp_ahead: f64,
+}
+
+fn plan_channel() -> String {
+    "FOOTSTEP_PLAN".into()
+}
+fn command_channel() -> String {
+    "GAIT_COMMAND".into()
+}
+fn step_counter_channel() -> String {
+    "STEP_COUNTER".into()
+}
+fn status_channel() -> String {
+    "GAIT_STATUS".into()
+}
+fn rate() -> f64 {
+    100.0
+}
+fn counter_rate() -> f64 {
+    50.0
+}
+fn lookahead() -> f64 {
+    0.3
+}
+fn chunk() -> f64 {
+    0.2
+}
+fn start_tolerance() -> f64 {
+    0.02
+}
+fn pose_tolerance() -> f64 {
+    1.0
+}
+fn pose_speed() -> f64 {
+    0.3
+}
+fn track_tolerance() -> f64 {
+    0.2
+}
+fn track_lag() -> f64 {
+    0.05
+}
+
+impl GaitConfig {
+    /// Checks what the types cannot: positive rates and times, the legs named for the robot,
+    /// a chunk and lookahead that fit the walker's switch.
+    pub fn check(&self) -> Result<(), String> {
+        let pos = [
+            ("rate_hz", self.rate_hz),
+            ("step_counter_rate_hz", self.step_counter_rate_hz),
+            ("lookahead", self.lookahead),
+            ("chunk", self.chunk),
+            ("start_tolerance", self.start_tolerance),
+            ("pose_tolerance", self.pose_tolerance),
+            ("pose_speed", self.pose_speed),
+            ("track_tolerance", self.track_tolerance),
+        ];
+        for (name, v) in pos {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("{name} must be positive, not {v}"));
+            }
+        }
+        let want: &[&str] = match self.robot {
+            Robot::Archie => &["left", "right"],
+            Robot::Hexapod => &["all"],
+        };
+        for name in self.joints.keys() {
+            if !want.contains(&name.as_str()) {
+                return Err(format!(
+                    "joints.{name}: the {:?}'s joint groups are {want:?}",
+                    self.robot
+                ));
+            }
+        }
+        if self.joints.is_empty() {
+            return Err(format!("no joints: name their channels ({want:?})"));
+        }
+        if self.robot == Robot::Archie && self.walker.switch_ahead < self.lookahead {
+            return Err(format!(
+                "walker.switch_ahead ({} s) must be at least the lookahead ({} s): a new \
+                 pattern replaces only what was not sent",
+                self.walker.switch_ahead, self.lookahead
+            ));
+        }
+        self.pattern.timing.check().map_err(|e| e.to_string())?;
+        Ok(())
+    }
+
+    /// The robot file's path, relative to the folder of the file the configuration came
+    /// from.
+    pub fn robot_path(&self, config_file: Option<&Path>) -> PathBuf {
+        match config_file.and_then(Path::parent) {
+            Some(dir) if self.robot_file.is_relative() => dir.join(&self.robot_file),
+            _ => self.robot_file.clone(),
+        }
+    }
+}
+
+/// A footstep plan as the walker takes it: every step numbered, finite and on a side, the
+/// plan's status a walkable one (ok, or partial with steps). An error says why not.
+pub fn plan_of(msg: &FootstepPlanT) -> Result<Plan, String> {
+    if msg.status != FootstepPlanT::STATUS_OK && msg.status != FootstepPlanT::STATUS_PARTIAL {
+        return Err(format!(
+            "the planner's status {} ({}) is no plan to walk",
+            msg.status, msg.detail
+        ));
+    }
+    if msg.num_steps as usize != msg.steps.len() || msg.num_steps < 0 {
+        return Err(format!(
+            "num_steps {} for {} steps",
+            msg.num_steps,
+            msg.steps.len()
+        ));
+    }
+    let mut steps = Vec::with_capacity(msg.steps.len());
+    for (i, s) in msg.steps.iter().enumerate() {
+        let side = match s.foot.side {
+            FootT::SIDE_LEFT => Side::Left,
+            FootT::SIDE_RIGHT => Side::Right,
+            other => return Err(format!("step {i}: side {other} is neither foot")),
+        };
+        if s.step_number != msg.step_number + 1 + i as i64 {
+            return Err(format!(
+                "step {i} is numbered {}, not {} (the plan echoes step {})",
+                s.step_number,
+                msg.step_number + 1 + i as i64,
+                msg.step_number
+            ));
+        }
+        steps.push(Footstep {
+            number: s.step_number,
+            side,
+            place: [s.foot.x, s.foot.y, s.foot.z, s.foot.yaw],
+            swing_height: s.swing_height,
+            duration: s.duration,
+            padding: s.is_padding,
+        });
+    }
+    Ok(Plan {
+        echo: msg.step_number,
+        steps,
+    })
+}
+
+/// The step counter's message.
+pub fn counter_msg(header: HeaderT, c: &StepCounter) -> StepCounterT {
+    StepCounterT {
+        header,
+        step_number: c.number,
+        swing_side: match c.swing {
+            Some(Side::Left) => FootT::SIDE_LEFT,
+            Some(Side::Right) => FootT::SIDE_RIGHT,
+            None => -1,
+        },
+        phase: c.phase,
+    }
+}
+
+/// A PVT trajectory of `names`: rows at `times` (s, from the first row), starting at
+/// `start_utime` (0: as soon as the bridge can) and replacing what is queued or following it.
+pub fn trajectory_msg(
+    header: HeaderT,
+    names: &[String],
+    times: &[f64],
+    positions: &[Vec<f64>],
+    velocities: &[Vec<f64>],
+    start_utime: i64,
+    append: bool,
+) -> JointTrajectoryT {
+    let t0 = times.first().copied().unwrap_or(0.0);
+    JointTrajectoryT {
+        header,
+        start_utime: if append { 0 } else { start_utime },
+        mode: JointTrajectoryT::MODE_PVT,
+        queue: if append {
+            JointTrajectoryT::QUEUE_APPEND
+        } else {
+            JointTrajectoryT::QUEUE_REPLACE
+        },
+        num_joints: names.len() as i32,
+        joint_names: names.to_vec(),
+        num_rows: times.len() as i32,
+        // Whole microseconds from the first row, rounded to the millisecond grid of PVT rows.
+        time_from_start: times
+            .iter()
+            .map(|t| ((t - t0) * 1e3).round() / 1e3)
+            .collect(),
+        positions: positions.to_vec(),
+        velocities: velocities.to_vec(),
+    }
+}
+
+/// Position set-points with their speeds.
+pub fn command_msg(
+    header: HeaderT,
+    names: &[String],
+    positions: &[f64],
+    velocities: &[f64],
+) -> JointCommandT {
+    JointCommandT {
+        header,
+        num_joints: names.len() as i32,
+        names: names.to_vec(),
+        modes: vec![JointCommandT::MODE_POSITION; names.len()],
+        setpoints: positions.to_vec(),
+        velocities: velocities.to_vec(),
+    }
+}
+
+/// A minimum-jerk move of joints from `from` to `to` taking at least `min_time` s and no
+/// joint faster than `speed` rad/s at its peak (1.875 · distance / time): rows every `dt`,
+/// (times, positions, velocities).
+#[allow(clippy::type_complexity)]
+pub fn min_jerk(
+    from: &[f64],
+    to: &[f64],
+    speed: f64,
+    min_time: f64,
+    dt: f64,
+) -> (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let far = from
+        .iter()
+        .zip(to)
+        .map(|(a, b)| (b - a).abs())
+        .fold(0.0, f64::max);
+    let time = ((1.875 * far / speed).max(min_time) / dt).ceil() * dt;
+    let n = (time / dt).round() as usize;
+    let mut times = Vec::with_capacity(n + 1);
+    let mut pos = Vec::with_capacity(n + 1);
+    let mut vel = Vec::with_capacity(n + 1);
+    for k in 0..=n {
+        let t = k as f64 * dt;
+        let x = t / time;
+        let s = 10.0 * x.powi(3) - 15.0 * x.powi(4) + 6.0 * x.powi(5);
+        let ds = (30.0 * x.powi(2) - 60.0 * x.powi(3) + 30.0 * x.powi(4)) / time;
+        times.push(t);
+        pos.push(from.iter().zip(to).map(|(a, b)| a + (b - a) * s).collect());
+        vel.push(from.iter().zip(to).map(|(a, b)| (b - a) * ds).collect());
+    }
+    (times, pos, vel)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use stride_lcmtypes::stride::FootstepT;
+
+    fn msg(echo: i64, n: usize) -> FootstepPlanT {
+        FootstepPlanT {
+            step_number: echo,
+            status: FootstepPlanT::STATUS_OK,
+            num_steps: n as i32,
+            steps: (0..n)
+                .map(|i| FootstepT {
+                    step_number: echo + 1 + i as i64,
+                    foot: FootT {
+                        side: (i % 2) as i8,
+                        x: 0.1 * i as f64,
+                        y: 0.1,
+                        z: 0.0,
+                        yaw: 0.0,
+                    },
+                    swing_height: 0.05,
+                    duration: 0.0,
+                    is_padding: i + 1 == n,
+                })
+                .collect(),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn a_plan_message_becomes_the_walkers_plan() {
+        let p = plan_of(&msg(4, 3)).unwrap();
+        assert_eq!(p.echo, 4);
+        assert_eq!(p.steps.len(), 3);
+        assert_eq!(p.steps[0].number, 5);
+        assert_eq!(p.steps[1].side, Side::Right);
+        assert!(p.steps[2].padding);
+        assert_eq!(p.steps[1].place, [0.1, 0.1, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn plans_that_make_no_sense_are_errors() {
+        let mut m = msg(4, 3);
+        m.status = FootstepPlanT::STATUS_NO_PATH;
+        m.detail = "blocked".into();
+        assert!(plan_of(&m).unwrap_err().contains("blocked"));
+        let mut m = msg(4, 3);
+        m.num_steps = 5;
+        assert!(plan_of(&m).unwrap_err().contains("num_steps"));
+        let mut m = msg(4, 3);
+        m.steps[1].step_number = 9;
+        assert!(plan_of(&m).unwrap_err().contains("numbered 9"));
+        let mut m = msg(4, 3);
+        m.steps[0].foot.side = 7;
+        assert!(plan_of(&m).unwrap_err().contains("side 7"));
+    }
+
+    #[test]
+    fn the_stabiliser_tilts_against_the_pelvis_and_stays_within_its_bound() {
+        // Rolled 0.1 rad: w = cos 0.05, x = sin 0.05.
+        let imu = ImuT {
+            orientation: [0.05f64.cos(), 0.05f64.sin(), 0.0, 0.0],
+            ..Default::default()
+        };
+        let a = Stabiliser::attitude(&imu).unwrap();
+        assert!((a[0] - 0.1).abs() < 1e-12 && a[1].abs() < 1e-12);
+        let s = Stabiliser {
+            roll_gain: 0.5,
+            pitch_gain: 0.5,
+            max: 0.03,
+        };
+        assert_eq!(s.correction(a), [-0.03, 0.0]);
+        assert!(Stabiliser::attitude(&ImuT::default()).is_none());
+    }
+
+    #[test]
+    fn a_min_jerk_move_rests_at_both_ends_within_its_speed() {
+        let (t, p, v) = min_jerk(&[0.0, 1.0], &[0.5, 1.0], 0.3, 1.0, 0.01);
+        assert!((p.last().unwrap()[0] - 0.5).abs() < 1e-12);
+        assert!(v[0][0].abs() < 1e-12 && v.last().unwrap()[0].abs() < 1e-12);
+        let top = v.iter().map(|r| r[0].abs()).fold(0.0, f64::max);
+        assert!(top <= 0.3 + 1e-9, "{top}");
+        assert!(
+            (t.last().unwrap() - 3.13).abs() < 0.011,
+            "{}",
+            t.last().unwrap()
+        );
+    }
+}
