@@ -301,7 +301,9 @@ pub fn to_msg(
         .map(|(k, (foot, is_padding))| FootstepT {
             step_number: req.step_number + 1 + k as i64,
             foot,
-            swing_height: 0.05,
+            // Nothing stands between the contacts: the planners keep off obstacles, and the
+            // gait clears the higher contact by its own clearance.
+            swing_height: 0.0,
             duration: 0.0,
             is_padding,
         })

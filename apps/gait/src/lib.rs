@@ -371,6 +371,7 @@ pub fn plan_of(msg: &FootstepPlanT) -> Result<Plan, String> {
     Ok(Plan {
         echo: msg.step_number,
         steps,
+        reaches_goal: msg.status == FootstepPlanT::STATUS_OK,
     })
 }
 

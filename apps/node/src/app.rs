@@ -307,9 +307,11 @@ impl Period {
 impl Node {
     /// Runs `app` until shutdown (a signal, [`Node::exit_with`], or stdout closed under a
     /// pipe), handling messages between its ticks; then stops it. Marks the node running
-    /// first unless the app set another state. Returns the exit status asked for.
+    /// first unless the app set another state or said what it is starting on (a launcher
+    /// starts what depends on it only once it runs). Returns the exit status asked for.
     pub fn run<T: Tick>(&self, mut app: T) -> anyhow::Result<ExitCode> {
-        if self.health().state == stride_lcmtypes::stride::NodeStatusT::STATE_STARTING {
+        let h = self.health();
+        if h.state == stride_lcmtypes::stride::NodeStatusT::STATE_STARTING && h.detail.is_empty() {
             self.set_running();
         }
         let mut wake = Instant::now();

@@ -482,6 +482,13 @@ impl Track {
     }
 }
 
+/// The system clock, µs since the Unix epoch.
+pub(crate) fn wall_us() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as i64)
+}
+
 /// The CANopen master of a set of Elmo drives.
 pub struct Master<B: CanBus> {
     pub(crate) bus: B,
@@ -489,6 +496,10 @@ pub struct Master<B: CanBus> {
     pub(crate) track: Track,
     /// Plan time 0.
     pub(crate) epoch: Instant,
+    /// The wall clock at plan time 0, µs since the Unix epoch: trajectories' start times
+    /// map to plan time through this one offset, so that starts sent on one grid land on
+    /// one grid (see [`Master::plan_us_of_wall`]).
+    pub(crate) wall_epoch: i64,
     pub(crate) next_sync: Instant,
     /// Starts not yet sent (the controller's queue was full): each with the axis and plan
     /// time it starts, when it is a start and not a read pointer.
@@ -558,6 +569,7 @@ impl<B: CanBus> Master<B> {
             }
         }
         let now = Instant::now();
+        let wall_epoch = wall_us();
         Ok(Master {
             bus,
             track: Track {
@@ -573,11 +585,26 @@ impl<B: CanBus> Master<B> {
             },
             cfg,
             epoch: now,
+            wall_epoch,
             next_sync: now,
             starts: Default::default(),
             stopped: None,
             counters: Counters::default(),
         })
+    }
+
+    /// Plan time of a wall-clock time `utime` (µs since the Unix epoch). One fixed offset
+    /// maps every start, not the clocks' difference read anew each time (which moves by the
+    /// time between the two readings and would shift a replacing trajectory against the
+    /// rows it joins); the offset is read again only when the wall clock was stepped or has
+    /// drifted by more than a millisecond from it.
+    pub(crate) fn plan_us_of_wall(&mut self, utime: i64) -> i64 {
+        // Both clocks read back to back.
+        let fresh = wall_us() - self.us(Instant::now());
+        if (fresh - self.wall_epoch).abs() > 1000 {
+            self.wall_epoch = fresh;
+        }
+        utime.saturating_sub(self.wall_epoch)
     }
 
     /// Plan time of `t`, µs.

@@ -4,7 +4,7 @@
 //! drives' tables have room and their time comes, every axis of a motion started together,
 //! SYNCs, and what comes back.
 
-use std::time::{Instant, SystemTime, UNIX_EPOCH};
+use std::time::Instant;
 
 use stride_canbus::{BusError, CanBus};
 use stride_canopen::ds402;
@@ -37,13 +37,6 @@ fn row_of(tag: Tag, rows: usize) -> usize {
         Tag::Join => 0,
         Tag::Stop => rows.saturating_sub(1),
     }
-}
-
-/// The system clock, µs since the Unix epoch.
-fn wall_us() -> i64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_micros() as i64)
 }
 
 impl<B: CanBus> Master<B> {
@@ -82,6 +75,10 @@ impl<B: CanBus> Master<B> {
         )?;
         let bad = MasterError::BadTrajectory;
         let now_us = self.us(now);
+        let at = match t.start {
+            Start::At(utime) => self.plan_us_of_wall(utime),
+            _ => 0,
+        };
         let rearm = self.stopped.is_some();
         let moving = |a: usize| {
             let ax = &self.track.axes[a];
@@ -102,8 +99,8 @@ impl<B: CanBus> Master<B> {
             .unwrap_or(now_us);
         let s = match t.start {
             Start::Now => earliest,
-            Start::At(utime) => {
-                let s = now_us.saturating_add(utime.saturating_sub(wall_us()));
+            Start::At(_) => {
+                let s = at;
                 let bound = self.cfg.max_queue.as_micros() as i64;
                 if s.saturating_sub(now_us) > bound {
                     return Err(bad(format!(

@@ -840,3 +840,45 @@ fn a_state_read_late_keeps_its_speed() {
     assert!(!ev.iter().any(Event::is_fault), "{ev:?}");
     r.finish();
 }
+
+#[test]
+fn a_replacement_mid_motion_lands_on_the_clock_of_the_rows_it_joins() {
+    // The finding: a gait replacing its stream mid-motion (rows on its own 10 ms grid, the
+    // replacement 5 ms off it) was refused for an acceleration of 200 rad/s² that no row
+    // had: its start was mapped from the wall clock through the clocks' difference read at
+    // that moment, against the tick's start, so each trajectory landed shifted by the time
+    // the bridge had spent in its tick. One motion cut in two must play as one.
+    let mut r = Rig::new(1, Motion::Pvt);
+    let wall = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_micros() as i64;
+    let w = std::f64::consts::TAU;
+    let f = |x: f64| (0.3 * (1.0 - (w * x).cos()), 0.3 * w * (w * x).sin());
+    let part = |from: f64, to: f64| {
+        let n = ((to - from) / 0.01).round() as usize;
+        let mut t = rows(
+            "j1",
+            &(0..=n)
+                .map(|i| {
+                    let x = from + i as f64 * 0.01;
+                    let (p, v) = f(x);
+                    (x - from, p, v)
+                })
+                .collect::<Vec<_>>(),
+        );
+        t.start = Start::At(wall + 300_000 + (from * 1e6).round() as i64);
+        t
+    };
+    // The first read at once, the second by a tick that began 3 ms before it came to it:
+    // the same motion from 5 ms off its grid, sent once more, joins the rows it replaces.
+    r.m.load(&part(0.0, 1.0), Instant::now()).unwrap();
+    r.run(Duration::from_millis(100));
+    let stale = Instant::now() - Duration::from_millis(3);
+    r.m.load(&part(0.505, 1.0), stale)
+        .expect("the same motion joins the rows it replaces");
+    r.play();
+    assert!(r.positions()[0].abs() < 2e-3, "{:?}", r.positions());
+    assert_eq!(r.m.status().counters.refused, 0);
+    r.finish();
+}

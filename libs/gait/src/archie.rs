@@ -33,6 +33,9 @@ pub struct HeightConfig {
     pub knee_min: f64,
     /// Taken off the highest height, m.
     pub margin: f64,
+    /// Every joint this far inside its limits in those poses, rad (room for the swing, the
+    /// pelvis carrying the whole body's COM, and the COM's sway past the feet).
+    pub joint_margin: f64,
 }
 
 impl Default for HeightConfig {
@@ -42,21 +45,26 @@ impl Default for HeightConfig {
             stance_width: 0.2,
             knee_min: 0.4,
             margin: 0.01,
+            joint_margin: 0.1,
         }
     }
 }
 
 /// The COM height from the legs: [`archie::max_pelvis_height`] over the configured step with
-/// the pelvis over the soles' ZMP points (`zmp_ahead` of their centres), less the margin.
+/// the pelvis over the soles' ZMP points (`zmp_ahead` of their centres), the knees bent at
+/// least `knee_min` and every joint `joint_margin` inside its limits, less the margin.
 pub fn default_z_c(robot: &ArchieConfig, h: &HeightConfig, zmp_ahead: f64) -> f64 {
     let ahead = robot.foot.centre_ahead + zmp_ahead;
-    archie::max_pelvis_height(
-        &robot.links,
-        h.step_length,
-        h.stance_width,
-        h.knee_min,
-        ahead,
-    ) - h.margin
+    let m = h.joint_margin;
+    let fits = |_: Leg, q: &Q| {
+        q[3] >= h.knee_min
+            && robot
+                .joint
+                .iter()
+                .zip(q)
+                .all(|(j, &v)| v >= j.min + m && v <= j.max - m)
+    };
+    archie::max_pelvis_height(&robot.links, h.step_length, h.stance_width, ahead, fits) - h.margin
 }
 
 /// One leg's rows.
@@ -290,9 +298,15 @@ impl ArchieGait {
                 (p(i + 1) - p(i - 1)) / (times[i + 1] - times[i - 1])
             }
         };
-        let vel: Vec<[Q; 2]> = (0..n)
+        let mut vel: Vec<[Q; 2]> = (0..n)
             .map(|i| std::array::from_fn(|l| std::array::from_fn(|j| d(i, l, j))))
             .collect();
+        // A pattern ends standing: its last row at rest (the settled COM's creep, under a
+        // millimetre a second, ends there), so a drive playing it ends its motion rather than
+        // stopping a stream.
+        if let Some(v) = vel.last_mut() {
+            *v = [[0.0; 6]; 2];
+        }
         let plan = JointPlan {
             times,
             pelvis: pelvises,

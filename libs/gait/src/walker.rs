@@ -12,8 +12,8 @@
 //!   refused with its reason and counted; the robot then steps in place and stands;
 //! - when the taken plan's steps run out before the goal, the robot steps in place, for at
 //!   most `plan_timeout` after the last valid plan; then, or on a stop, it brings its feet
-//!   together and stands. A plan whose remaining steps are all padding has reached the goal:
-//!   the robot stands there.
+//!   together and stands. A plan whose remaining steps are all padding, or that says its
+//!   last step reaches the goal, has reached it: the robot stands there.
 //!
 //! Each change makes a new pattern from the state the current one has `switch_ahead` from
 //! now (what was sent to the drives before then plays as it was), so the COM and a swing under
@@ -73,6 +73,10 @@ pub struct Plan {
     pub echo: i64,
     /// Its steps, numbered from `echo + 1`.
     pub steps: Vec<Footstep>,
+    /// Its last step reaches the goal (the planner found the whole way): the robot stands
+    /// there when it is done, as after padding steps, instead of stepping in place for the
+    /// next plan.
+    pub reaches_goal: bool,
 }
 
 /// What became of a plan.
@@ -368,7 +372,7 @@ impl Walker {
         // Padding at the end is the goal: the robot stands instead.
         let mut steps: Vec<Footstep> = plan.steps.clone();
         let real = steps.iter().rposition(|f| !f.padding).map_or(0, |i| i + 1);
-        let at_goal = real < steps.len() || steps.is_empty();
+        let at_goal = plan.reaches_goal || real < steps.len() || steps.is_empty();
         steps.truncate(real);
         let first = steps.first().map_or(plan.echo + 1, |f| f.number);
         kept.extend(steps);

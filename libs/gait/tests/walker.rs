@@ -70,7 +70,11 @@ fn plan_from(w: &Walker, t: f64, echo: i64, n: usize, pad: usize) -> Plan {
         feet[k] = place;
         side = side.other();
     }
-    Plan { echo, steps }
+    Plan {
+        echo,
+        steps,
+        reaches_goal: false,
+    }
 }
 
 #[test]

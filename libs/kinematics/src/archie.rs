@@ -362,9 +362,16 @@ pub fn solve(links: &Links, leg: Leg, sole: &Pose, near: &Q) -> Result<Q, KinErr
 /// The highest the pelvis centre stands (upright, level) with the feet's ankles `length`
 /// apart along x and `width` apart across, the pelvis over either foot or halfway (where a
 /// double support's COM goes), `ahead` in front of where it would be over the ankles (the
-/// ZMP's point on the sole lies ahead of the ankle), every knee bent at least `knee_min` rad:
-/// the height of the worst double support of a step of that length. By bisection.
-pub fn max_pelvis_height(links: &Links, length: f64, width: f64, knee_min: f64, ahead: f64) -> f64 {
+/// ZMP's point on the sole lies ahead of the ankle), every leg's joints accepted by `fits`
+/// (a least knee bend, the joints' limits): the height of the worst double support of a step
+/// of that length. By a scan from the top, then bisection.
+pub fn max_pelvis_height(
+    links: &Links,
+    length: f64,
+    width: f64,
+    ahead: f64,
+    fits: impl Fn(Leg, &Q) -> bool,
+) -> f64 {
     let ok = |z: f64| {
         [0.0, 0.5, 1.0].iter().all(|&f| {
             // The right ankle at the origin, the left `length` ahead and `width` to the left;
@@ -374,12 +381,12 @@ pub fn max_pelvis_height(links: &Links, length: f64, width: f64, knee_min: f64, 
                 .iter()
                 .all(|&(leg, at)| {
                     let sole = Pose::at([at[0] - pelvis[0], at[1] - pelvis[1], -z]);
-                    ik(links, leg, &sole).is_ok_and(|q| q[3] >= knee_min)
+                    ik(links, leg, &sole).is_ok_and(|q| fits(leg, &q))
                 })
         })
     };
-    // From the top down to the first height that works (the heights that work are an
-    // interval: lower, the legs fold past their reach), then bisection above it.
+    // From the top down to the first height that works, then bisection above it (the legs'
+    // reach bounds the heights from above: just above the first that works, none do).
     let top = links.a3 + links.a2 + links.a1 + links.sole;
     let step = 0.005;
     let mut z = top;
