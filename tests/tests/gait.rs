@@ -1,17 +1,25 @@
-//! stride-gait as a process on the test bus: Archie's left leg behind stride-elmo-bridge (six
-//! simulated Elmo drives), plans from stride-footstep-planner. The gait moves the leg into its
-//! standing pose from where the drives are, walks the planner's plan to its goal with every
-//! trajectory chunk taken by the bridge, and stands; a late plan is dropped, a bad one refused
-//! with its reason.
+//! Archie's joint rows on the Elmo drives: a walk's rows played by the Elmo master on six
+//! fake drives, each within its following-error window; and stride-gait as a process on the
+//! test bus, Archie's left leg behind stride-elmo-bridge (six simulated Elmo drives), plans
+//! from stride-footstep-planner. The gait moves the leg into its standing pose from where the
+//! drives are, walks the planner's plan to its goal with every trajectory chunk taken by the
+//! bridge, and stands; a late plan is dropped, a bad one refused with its reason.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use lcm::Lcm;
+use stride_canbus::MemBus;
+use stride_elmo::{Master, Start, Trajectory};
+use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
 use stride_footstep::geom::v2;
 use stride_footstep_planner::node::request_at;
+use stride_gait::timeline::{Footstep, Side};
+use stride_gait_node::{archie_gait, min_jerk, GaitConfig};
+use stride_kinematics::archie::ArchieConfig;
 use stride_lcmtypes::stride::{
     FootstepPlanT, JointStateT, NodeStatusT, StepCounterT, TrajectoryStatusT,
 };
@@ -286,4 +294,119 @@ fn the_gait_walks_the_planners_plan_through_the_elmo_bridge_and_stands() {
     }
     let (st, out) = gait.interrupt();
     assert!(st.success(), "{out}");
+}
+
+/// Pumps the master until it is idle (at most `secs`), at every wake it asks for.
+fn play<B: stride_canbus::CanBus>(m: &mut Master<B>, secs: f64) {
+    let deadline = Instant::now() + Duration::from_secs_f64(secs);
+    loop {
+        m.pump(Instant::now()).unwrap();
+        if m.idle() || Instant::now() > deadline {
+            break;
+        }
+        let wake = m.next_wake().min(Instant::now() + Duration::from_millis(1));
+        if let Some(w) = wake.checked_duration_since(Instant::now()) {
+            std::thread::sleep(w);
+        }
+    }
+    assert!(m.idle(), "the motion did not end within {secs} s");
+}
+
+#[test]
+fn archies_rows_play_on_six_fake_elmo_drives_within_their_tolerance() {
+    // The gait's rows of a walk (three 0.25 m steps from standing and one closing), the left
+    // leg's played by the Elmo master on six fake drives configured as the bridge configures
+    // them: every drive keeps within its following-error window (the joint's tolerance, set
+    // at bring-up: a drive beyond it faults), nothing stops or runs dry, and the leg ends
+    // where the rows do.
+    let cfg: GaitConfig =
+        toml::from_str(&std::fs::read_to_string(repo("config/gait-archie.toml")).unwrap()).unwrap();
+    let robot = ArchieConfig::load(&repo("config/robots/archie.toml")).unwrap();
+    let (legs, gen) = archie_gait(&cfg, robot).unwrap();
+    let step = |number: i64, side: Side, x: f64| Footstep {
+        number,
+        side,
+        place: [x, if side == Side::Left { 0.1 } else { -0.1 }, 0.0, 0.0],
+        swing_height: 0.0,
+        duration: 0.0,
+        padding: false,
+    };
+    let steps = [
+        step(1, Side::Left, 0.25),
+        step(2, Side::Right, 0.5),
+        step(3, Side::Left, 0.75),
+        step(4, Side::Right, 0.75),
+    ];
+    let start = gen.standing(0.0, [0.0, 0.1, 0.0, 0.0], [0.0, -0.1, 0.0, 0.0]);
+    let rows = legs.joints(&gen.plan(&start, &steps).unwrap()).unwrap();
+    legs.check(&rows).unwrap();
+
+    let bridge: stride_elmo_bridge::BridgeConfig = toml::from_str(
+        &std::fs::read_to_string(repo("config/robots/archie-left-leg.toml")).unwrap(),
+    )
+    .unwrap();
+    let mut mc = bridge.master().unwrap();
+    // The whole walk in one trajectory (the gait streams it in chunks).
+    mc.max_queue = Duration::from_secs(60);
+    let bus = MemBus::new(1_000_000);
+    let stop = Arc::new(AtomicBool::new(false));
+    let drives: Vec<_> = bridge
+        .joint
+        .iter()
+        .map(|j| {
+            FakeElmo::new(ElmoConfig::new(j.node), Levers::default())
+                .spawn(bus.node(), stop.clone())
+        })
+        .collect();
+    let mut m = Master::new(bus.node(), bridge.joint.clone(), mc).unwrap();
+    m.bring_up().unwrap();
+    let names: Vec<String> = rows.left.names.to_vec();
+    let warm = Instant::now() + Duration::from_millis(100);
+    while Instant::now() < warm {
+        m.pump(Instant::now()).unwrap();
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    // Into the standing pose from the drives' zeros, then the walk.
+    let stand = rows.left.positions[0].to_vec();
+    let (times, positions, velocities) = min_jerk(&[0.0; 6], &stand, 1.0, 1.0, 0.01);
+    let pose = Trajectory {
+        joints: names.clone(),
+        times,
+        positions,
+        velocities,
+        start: Start::Now,
+    };
+    m.load(&pose, Instant::now()).unwrap();
+    play(&mut m, 10.0);
+    let walk = Trajectory {
+        joints: names.clone(),
+        times: rows.times.clone(),
+        positions: rows.left.positions.iter().map(|q| q.to_vec()).collect(),
+        velocities: rows.left.velocities.iter().map(|q| q.to_vec()).collect(),
+        start: Start::Now,
+    };
+    m.load(&walk, Instant::now()).unwrap();
+    play(&mut m, 30.0);
+    let events = m.take_events();
+    assert!(!events.iter().any(|e| e.is_fault()), "{events:?}");
+    let c = m.status().counters;
+    assert_eq!(
+        (c.refused, c.underflows, c.stream_stops),
+        (0, 0, 0),
+        "{c:?}"
+    );
+    let end = rows.left.positions.last().unwrap();
+    for ((name, s), want) in m.states().into_iter().zip(end) {
+        assert!(
+            (s.position - want).abs() < 1e-3,
+            "{name}: {} vs {want}",
+            s.position
+        );
+    }
+    let shut = m.shutdown();
+    assert!(shut.failed.is_empty() && shut.standstill, "{shut:?}");
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    for d in drives {
+        d.join().unwrap();
+    }
 }

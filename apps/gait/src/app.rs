@@ -9,8 +9,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use stride_gait::archie::{ArchieGait, JointPlan};
 use stride_gait::hexapod::{HexConfig, HexGait, HexRow};
-use stride_gait::pattern::{Generator, Pattern};
-use stride_gait::support::Sole;
+use stride_gait::pattern::Pattern;
 use stride_gait::timeline::Footstep;
 use stride_gait::walker::{Verdict, Walker};
 use stride_gait::GaitError;
@@ -285,27 +284,8 @@ impl GaitApp {
             Robot::Archie => {
                 let robot = ArchieConfig::load(&robot_path)
                     .with_context(|| format!("robot file {}", robot_path.display()))?;
-                let p = &cfg.pattern;
-                let mut legs =
-                    ArchieGait::new(robot.clone(), &p.height, cfg.zmp_ahead, 0.01, p.whole_body)
-                        .map_err(|e| anyhow::anyhow!("{e}"))?;
-                if let Some(z) = p.z_c {
-                    legs.z_c = z;
-                }
-                let mut timing = p.timing;
-                timing.zmp_ahead = cfg.zmp_ahead;
-                let pattern = crate::PatternSection {
-                    timing,
-                    ..p.clone()
-                }
-                .config(
-                    legs.z_c,
-                    Sole {
-                        length: robot.foot.length,
-                        width: robot.foot.width,
-                    },
-                );
-                let gen = Generator::new(pattern).map_err(|e| anyhow::anyhow!("{e}"))?;
+                let (legs, gen) =
+                    crate::archie_gait(&cfg, robot.clone()).map_err(anyhow::Error::msg)?;
                 let [x, y, yaw] = cfg.start;
                 let w = cfg.walker.stance_width / 2.0;
                 let (s, c) = yaw.sin_cos();

@@ -8,14 +8,16 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
-use stride_gait::archie::HeightConfig;
+use stride_gait::archie::{ArchieGait, HeightConfig};
 use stride_gait::hexapod::HexGaitConfig;
+use stride_gait::pattern::Generator;
 use stride_gait::pattern::{Kind, PatternConfig, PlacementConfig};
 use stride_gait::preview::PreviewConfig;
 use stride_gait::support::Sole;
 use stride_gait::swing::SwingConfig;
 use stride_gait::timeline::{Footstep, Side, TimingConfig};
 use stride_gait::walker::{Plan, StepCounter, WalkerConfig};
+use stride_kinematics::archie::ArchieConfig;
 use stride_lcmtypes::stride::{
     FootT, FootstepPlanT, HeaderT, ImuT, JointCommandT, JointTrajectoryT, StepCounterT,
 };
@@ -438,6 +440,33 @@ pub fn command_msg(
         setpoints: positions.to_vec(),
         velocities: velocities.to_vec(),
     }
+}
+
+/// Archie's legs and pattern generator as `cfg` sets them: the COM height from the legs
+/// (or the file's `z_c`), the sole from the robot file, the ZMP reference `zmp_ahead`.
+pub fn archie_gait(
+    cfg: &GaitConfig,
+    robot: ArchieConfig,
+) -> Result<(ArchieGait, Generator), String> {
+    let p = &cfg.pattern;
+    let sole = Sole {
+        length: robot.foot.length,
+        width: robot.foot.width,
+    };
+    let mut legs = ArchieGait::new(robot, &p.height, cfg.zmp_ahead, 0.01, p.whole_body)
+        .map_err(|e| e.to_string())?;
+    if let Some(z) = p.z_c {
+        legs.z_c = z;
+    }
+    let mut timing = p.timing;
+    timing.zmp_ahead = cfg.zmp_ahead;
+    let pattern = PatternSection {
+        timing,
+        ..p.clone()
+    }
+    .config(legs.z_c, sole);
+    let gen = Generator::new(pattern).map_err(|e| e.to_string())?;
+    Ok((legs, gen))
 }
 
 /// A minimum-jerk move of joints from `from` to `to` taking at least `min_time` s and no
