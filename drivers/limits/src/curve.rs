@@ -75,23 +75,24 @@ impl Cubic {
         let [_, c1, c2, c3] = self.c;
         let h = self.h;
         let inside = |t: f64| t > 0.0 && t < h;
-        // Where v = 0: 3 c3 t² + 2 c2 t + c1 = 0.
-        let mut stops = vec![0.0, h];
+        // Where v = 0: 3 c3 t² + 2 c2 t + c1 = 0 (and the ends).
+        let mut stops = [0.0, h, f64::NAN, f64::NAN];
         let (qa, qb, qc) = (3.0 * c3, 2.0 * c2, c1);
         if qa.abs() > 1e-300 {
             let disc = qb * qb - 4.0 * qa * qc;
             if disc >= 0.0 {
                 let r = disc.sqrt();
-                stops.extend([(-qb - r) / (2.0 * qa), (-qb + r) / (2.0 * qa)]);
+                stops[2] = (-qb - r) / (2.0 * qa);
+                stops[3] = (-qb + r) / (2.0 * qa);
             }
         } else if qb.abs() > 1e-300 {
-            stops.push(-qc / qb);
+            stops[2] = -qc / qb;
         }
         let (mut p_min, mut p_max) = ((f64::INFINITY, 0.0), (f64::NEG_INFINITY, 0.0));
-        for t in stops
-            .into_iter()
-            .filter(|&t| t == 0.0 || t == h || inside(t))
-        {
+        for (i, &t) in stops.iter().enumerate() {
+            if i >= 2 && !inside(t) {
+                continue;
+            }
             let p = self.at(t).0;
             if p < p_min.0 {
                 p_min = (p, t);
@@ -102,11 +103,15 @@ impl Cubic {
         }
         // |v| peaks at the ends or at the vertex of the parabola (a = 0).
         let mut v = (0.0f64, 0.0);
-        let mut times = vec![0.0, h];
-        if c3.abs() > 1e-300 && inside(-c2 / (3.0 * c3)) {
-            times.push(-c2 / (3.0 * c3));
-        }
-        for t in times {
+        let vertex = if c3.abs() > 1e-300 {
+            -c2 / (3.0 * c3)
+        } else {
+            f64::NAN
+        };
+        for (i, &t) in [0.0, h, vertex].iter().enumerate() {
+            if i == 2 && !inside(t) {
+                continue;
+            }
             let s = self.at(t).1.abs();
             if s > v.0 {
                 v = (s, t);
@@ -129,6 +134,31 @@ pub struct Bounds {
     pub v: f64,
     /// Acceleration, rad/s².
     pub a: f64,
+}
+
+/// A quick test that the Hermite segment from `p0`, `v0` to `p1`, `v1` in `h` s stays
+/// within `b`: true only when it surely does, so that a caller checking many segments needs
+/// the exact [`Cubic::extremes`] only for the others. Positions are bounded by the ends
+/// widened by 4/27 · h · (|v0| + |v1|) (the largest the Hermite basis's slope terms reach);
+/// speeds (the ends and the parabola's vertex) and accelerations (the ends) are exact. NaN is
+/// never within.
+pub fn hermite_within(p0: f64, v0: f64, p1: f64, v1: f64, h: f64, b: &Bounds) -> bool {
+    let slack = 4.0 / 27.0 * h * (v0.abs() + v1.abs());
+    if !(p0.min(p1) - slack >= b.min && p0.max(p1) + slack <= b.max) {
+        return false;
+    }
+    let d = p1 - p0;
+    let c2 = (3.0 * d / h - 2.0 * v0 - v1) / h;
+    let c3 = (-2.0 * d / h + v0 + v1) / (h * h);
+    let mut v = v0.abs().max(v1.abs());
+    if c3 != 0.0 {
+        let t = -c2 / (3.0 * c3);
+        if t > 0.0 && t < h {
+            v = v.max((v0 - c2 * c2 / (3.0 * c3)).abs());
+        }
+    }
+    let a = (2.0 * c2).abs().max((2.0 * c2 + 6.0 * c3 * h).abs());
+    !(v.is_nan() || a.is_nan() || over(v, b.v) || over(a, b.a))
 }
 
 /// True past a limit, with a small margin so that a motion exactly at it (a stop at the
@@ -214,6 +244,7 @@ mod tests {
     }
 
     proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(2000))]
         #[test]
         fn exact_extremes_match_dense_sampling(
             p0 in -2.0..2.0f64, p1 in -2.0..2.0f64, v0 in -5.0..5.0f64, v1 in -5.0..5.0f64,
@@ -233,5 +264,40 @@ mod tests {
             proptest::prop_assert!((e.v.0 - v).abs() < 1e-4 * (1.0 + v));
             proptest::prop_assert!((e.a.0 - a).abs() < 1e-9 * (1.0 + a));
         }
+
+        #[test]
+        fn the_quick_test_passes_only_what_the_exact_extremes_pass(
+            p0 in -1.05..1.05f64, p1 in -1.05..1.05f64, v0 in -3.2..3.2f64,
+            v1 in -3.2..3.2f64, h in 0.001..0.3f64,
+        ) {
+            let b = Bounds { min: -1.0, max: 1.0, v: 3.0, a: 60.0 };
+            let e = Cubic::hermite(p0, v0, p1, v1, h).extremes();
+            let exact = beyond(&e, e.a, &b, 0.0).is_none();
+            if hermite_within(p0, v0, p1, v1, h, &b) {
+                proptest::prop_assert!(exact, "{e:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_quick_test_passes_smooth_rows_and_refuses_nan() {
+        let b = Bounds {
+            min: -1.0,
+            max: 1.0,
+            v: 3.0,
+            a: 60.0,
+        };
+        // A sine's rows 10 ms apart, well inside.
+        let f = |t: f64| (0.5 * (3.0 * t).sin(), 1.5 * (3.0 * t).cos());
+        let passed = (0..100)
+            .filter(|&i| {
+                let (t0, t1) = (i as f64 * 0.01, (i + 1) as f64 * 0.01);
+                let ((p0, v0), (p1, v1)) = (f(t0), f(t1));
+                hermite_within(p0, v0, p1, v1, 0.01, &b)
+            })
+            .count();
+        assert_eq!(passed, 100);
+        assert!(!hermite_within(f64::NAN, 0.0, 0.0, 0.0, 0.01, &b));
+        assert!(!hermite_within(0.0, 0.0, 0.0, f64::NAN, 0.01, &b));
     }
 }

@@ -12,9 +12,9 @@
 //! centre stands at most 0.679 m high with straight legs).
 
 use serde::Deserialize;
-use stride_kinematics::archie::{self, ArchieConfig, Leg, Q};
+use stride_kinematics::archie::{self, ArchieConfig, Leg, LegPoints, Q};
 use stride_kinematics::math::{Pose, V3};
-use stride_limits::curve::{beyond, Bounds, Cubic};
+use stride_limits::curve::{beyond, hermite_within, Bounds, Cubic};
 
 use crate::pattern::Pattern;
 use crate::support::P2;
@@ -107,6 +107,11 @@ pub struct ArchieGait {
     ///
     /// [`place`]: ArchieGait::place
     pub offset: V3,
+    /// Whole body: how far the COM moves per metre the pelvis moves (each axis, standing),
+    /// the step of [`place`]'s search.
+    ///
+    /// [`place`]: ArchieGait::place
+    pub gain: V3,
 }
 
 impl ArchieGait {
@@ -128,6 +133,7 @@ impl ArchieGait {
             row_period,
             whole_body: false,
             offset: [0.0; 3],
+            gain: [1.0; 3],
         };
         let w = height.stance_width / 2.0;
         let feet = [[-zmp_ahead, w, 0.0, 0.0], [-zmp_ahead, -w, 0.0, 0.0]];
@@ -146,12 +152,33 @@ impl ArchieGait {
             g.z_c = com[2];
             g.offset = [-com[0], -com[1], pelvis_z - com[2]];
             g.whole_body = true;
+            for d in 0..3 {
+                let mut p = pelvis.p;
+                p[d] += 1e-4;
+                let moved = Pose::at(p);
+                if let Ok(qm) = g.reach(&moved, &feet, &q) {
+                    let c = g.com_of(&moved, &qm);
+                    let k = (c[d] - com[d]) / 1e-4;
+                    if k.is_finite() && k > 0.1 {
+                        g.gain[d] = k;
+                    }
+                }
+            }
         }
         Ok(g)
     }
 
     /// The whole robot's centre of mass for a pelvis pose and the legs' joints.
     pub fn com_of(&self, pelvis: &Pose, q: &[Q; 2]) -> V3 {
+        let points = [Leg::Left, Leg::Right].map(|leg| {
+            let k = if leg == Leg::Left { 0 } else { 1 };
+            archie::fk_points(&self.robot.links, leg, &q[k]).1
+        });
+        self.com_of_points(pelvis, &points)
+    }
+
+    /// The whole robot's centre of mass for a pelvis pose and the legs' points.
+    fn com_of_points(&self, pelvis: &Pose, points: &[LegPoints; 2]) -> V3 {
         let m = &self.robot.mass;
         let mut sum = [0.0; 3];
         let mut add = |mass: f64, p: V3| {
@@ -160,8 +187,7 @@ impl ArchieGait {
             }
         };
         add(m.pelvis, pelvis.p);
-        for (leg, q) in [(Leg::Left, &q[0]), (Leg::Right, &q[1])] {
-            let (_, p) = archie::fk_points(&self.robot.links, leg, q);
+        for p in points {
             let w = |a: &V3| pelvis.apply(a);
             let mid = |a: &V3, b: &V3| {
                 w(&[
@@ -200,15 +226,18 @@ impl ArchieGait {
                 [com[0] + offset[0], com[1] + offset[1], com[2] + offset[2]],
                 yaw,
             );
-            q = self.reach(&pelvis, feet, &q)?;
-            let now = self.com_of(&pelvis, &q);
+            let (qn, points) = self.reach_points(&pelvis, feet, &q)?;
+            q = qn;
+            let now = self.com_of_points(&pelvis, &points);
             let err = [com[0] - now[0], com[1] - now[1], com[2] - now[2]];
-            if err.iter().all(|e| e.abs() < 1e-5) {
-                let q = self.solve(&pelvis, feet, &q)?;
-                return Ok((pelvis, q));
-            }
+            // The COM moves by about `gain` of the pelvis's move: the offset for the next
+            // try (or, once this one is close enough, the next row's guess) corrected so.
             for d in 0..3 {
-                offset[d] += err[d];
+                offset[d] += err[d] / self.gain[d];
+            }
+            if err.iter().all(|e| e.abs() < 1e-5) {
+                self.check_limits(&q)?;
+                return Ok((pelvis, q));
             }
         }
         Err(GaitError::Plan(
@@ -225,25 +254,41 @@ impl ArchieGait {
         near: &[Q; 2],
     ) -> Result<[Q; 2], GaitError> {
         let q = self.reach(pelvis, feet, near)?;
+        self.check_limits(&q)?;
+        Ok(q)
+    }
+
+    fn check_limits(&self, q: &[Q; 2]) -> Result<(), GaitError> {
         for (k, leg) in [Leg::Left, Leg::Right].into_iter().enumerate() {
             self.robot
                 .check_q(leg, &q[k])
                 .map_err(|e| GaitError::Plan(e.to_string()))?;
         }
-        Ok(q)
+        Ok(())
     }
 
     /// [`ArchieGait::solve`] without the limits.
     fn reach(&self, pelvis: &Pose, feet: &[Place; 2], near: &[Q; 2]) -> Result<[Q; 2], GaitError> {
+        self.reach_points(pelvis, feet, near).map(|(q, _)| q)
+    }
+
+    /// [`ArchieGait::reach`], with the legs' points.
+    fn reach_points(
+        &self,
+        pelvis: &Pose,
+        feet: &[Place; 2],
+        near: &[Q; 2],
+    ) -> Result<([Q; 2], [LegPoints; 2]), GaitError> {
         let mut out = [[0.0; 6]; 2];
+        let mut points = [[[0.0; 3]; 5]; 2];
         let inv = pelvis.inv();
         for (k, leg) in [Leg::Left, Leg::Right].into_iter().enumerate() {
             let f = feet[k];
             let sole = inv.then(&self.robot.sole_frame([f[0], f[1], f[2]], f[3]));
-            out[k] = archie::solve(&self.robot.links, leg, &sole, &near[k])
+            (out[k], points[k]) = archie::solve_points(&self.robot.links, leg, &sole, &near[k])
                 .map_err(|e| GaitError::Plan(e.to_string()))?;
         }
-        Ok(out)
+        Ok((out, points))
     }
 
     /// The pattern's COM at a sample (z_c above the ground under it: the feet's ground
@@ -269,10 +314,18 @@ impl ArchieGait {
         let mut pos: Vec<[Q; 2]> = Vec::with_capacity(ks.len());
         let mut pelvises = Vec::with_capacity(ks.len());
         let mut times = Vec::with_capacity(ks.len());
+        // The offsets found for the last three rows.
+        let mut seen = [offset; 3];
         for &k in &ks {
             let s = &pat.samples[k];
             let feet = [s.feet[0][0], s.feet[1][0]];
             let (com, yaw) = self.com_at(pat, k);
+            // The offset goes on as it went over the last three rows (a parabola through
+            // them).
+            seen = [offset, seen[0], seen[1]];
+            for d in 0..3 {
+                offset[d] = 3.0 * seen[0][d] - 3.0 * seen[1][d] + seen[2][d];
+            }
             let (pelvis, q) = self
                 .place(com, yaw, &feet, &near, &mut offset)
                 .map_err(|e| {
@@ -337,6 +390,11 @@ impl ArchieGait {
                 };
                 for i in 0..plan.times.len().saturating_sub(1) {
                     let (t0, t1) = (plan.times[i], plan.times[i + 1]);
+                    let (p0, v0) = (rows.positions[i][j], rows.velocities[i][j]);
+                    let (p1, v1) = (rows.positions[i + 1][j], rows.velocities[i + 1][j]);
+                    if hermite_within(p0, v0, p1, v1, t1 - t0, &b) {
+                        continue;
+                    }
                     let c = Cubic::hermite(
                         rows.positions[i][j],
                         rows.velocities[i][j],

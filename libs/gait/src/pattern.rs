@@ -20,7 +20,7 @@ use crate::lipm::{LipmConfig, Pendulum, State};
 use crate::preview::{Cart, Preview, PreviewConfig};
 use crate::support::{margin, polygon, Pose2, Sole, P2};
 use crate::swing::{Place, SwingConfig, SwingPath};
-use crate::timeline::{xy, Footstep, Phase, Step, Timeline, TimingConfig};
+use crate::timeline::{xy, Cursor, Footstep, Phase, Step, Timeline, TimingConfig};
 use crate::GaitError;
 
 /// Which COM generator.
@@ -139,6 +139,46 @@ pub struct Sample {
     pub phase: Phase,
     /// The ZMP's margin in the support polygon, m.
     pub margin: f64,
+}
+
+/// The support polygon of the phase last sampled, and its edges' lines.
+#[derive(Debug, Default)]
+struct Support {
+    key: Option<(u8, usize)>,
+    polygon: Vec<P2>,
+    edges: Vec<[f64; 3]>,
+}
+
+/// The lines of a convex polygon's edges (counter-clockwise) as (n_x, n_y, c): inside is
+/// n · p ≥ c, n of unit length. None of them for fewer than three corners.
+fn edges(poly: &[P2]) -> Vec<[f64; 3]> {
+    let n = poly.len();
+    if n < 3 {
+        return Vec::new();
+    }
+    (0..n)
+        .map(|i| {
+            let (a, b) = (poly[i], poly[(i + 1) % n]);
+            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+            let len = dx.hypot(dy);
+            let (nx, ny) = (-dy / len, dx / len);
+            [nx, ny, nx * a[0] + ny * a[1]]
+        })
+        .collect()
+}
+
+/// A point's margin inside a convex polygon from its edges' lines: inside, the nearest edge
+/// is as near as its line. None outside (or with no edges), where the corners count too.
+fn inside_margin(edges: &[[f64; 3]], p: P2) -> Option<f64> {
+    let mut m = f64::INFINITY;
+    for e in edges {
+        let d = e[0] * p[0] + e[1] * p[1] - e[2];
+        if d.is_nan() || d < 0.0 {
+            return None;
+        }
+        m = m.min(d);
+    }
+    (!edges.is_empty()).then_some(m)
 }
 
 /// A COM, ZMP and swing pattern, sampled every period.
@@ -445,24 +485,49 @@ impl Generator {
         }
     }
 
-    fn sample(&self, tl: &Timeline, t: f64, com: ComState) -> Sample {
+    #[inline(always)]
+    fn sample(
+        &self,
+        tl: &Timeline,
+        t: f64,
+        com: ComState,
+        zmp_ref: Option<P2>,
+        support: &mut Support,
+        cursor: &mut Cursor,
+    ) -> Sample {
         let zmp = [self.preview.zmp(&com.x.x), self.preview.zmp(&com.y.x)];
-        let ground: Vec<Pose2> = tl
-            .on_ground(t)
-            .iter()
-            .map(|p| Pose2 {
-                p: xy(p),
-                yaw: p[3],
-            })
-            .collect();
+        let (feet, phase) = cursor.at(t);
+        // The support polygon changes only with the phase: made once for each.
+        let key = match phase {
+            Phase::Single { step, .. } => (1, step),
+            Phase::Double { step: Some(step) } => (2, step),
+            Phase::Double { step: None } => (3, usize::from(t >= tl.start)),
+        };
+        if support.key != Some(key) {
+            let on: &[usize] = match phase {
+                Phase::Single { swing, .. } => &[swing.other().index()][..],
+                Phase::Double { .. } => &[0, 1],
+            };
+            let ground: Vec<Pose2> = on
+                .iter()
+                .map(|&k| Pose2 {
+                    p: xy(&feet[k][0]),
+                    yaw: feet[k][0][3],
+                })
+                .collect();
+            support.polygon = polygon(&self.cfg.sole, &ground);
+            support.edges = edges(&support.polygon);
+            support.key = Some(key);
+        }
         Sample {
             t,
             com,
-            zmp_ref: tl.zmp_ref(t),
+            zmp_ref: zmp_ref.unwrap_or_else(|| tl.zmp_ref(t)),
             zmp,
-            feet: tl.feet(t),
-            phase: tl.phase(t),
-            margin: margin(&polygon(&self.cfg.sole, &ground), zmp),
+            feet,
+            phase,
+            margin: inside_margin(&support.edges, zmp)
+                .unwrap_or_else(|| margin(&support.polygon, zmp)),
         }
     }
 
@@ -475,12 +540,28 @@ impl Generator {
         jerk: Option<[f64; 2]>,
         placed: Vec<(Footstep, P2)>,
     ) -> Pattern {
+        self.preview_pattern_until(tl, com, jerk, placed, f64::INFINITY)
+    }
+
+    /// [`Generator::preview_pattern`] sampled only up to the first sample at or after `until`
+    /// (the rest of the timeline still previewed).
+    fn preview_pattern_until(
+        &self,
+        tl: Timeline,
+        com: ComState,
+        jerk: Option<[f64; 2]>,
+        placed: Vec<(Footstep, P2)>,
+        until: f64,
+    ) -> Pattern {
         let dt = self.cfg.preview.period;
-        let ticks = ((tl.end - tl.start) / dt).ceil() as usize;
+        let whole = ((tl.end - tl.start) / dt).ceil() as usize;
+        let ticks = if until < tl.end {
+            (((until - tl.start) / dt).ceil().max(0.0) as usize + 1).min(whole)
+        } else {
+            whole
+        };
         let n = self.preview.horizon_ticks();
-        let refs: Vec<P2> = (0..=ticks + n)
-            .map(|k| tl.zmp_ref(tl.start + k as f64 * dt))
-            .collect();
+        let refs = tl.zmp_refs(tl.start, dt, ticks + n + 1);
         let rx: Vec<f64> = refs.iter().map(|p| p[0]).collect();
         let ry: Vec<f64> = refs.iter().map(|p| p[1]).collect();
         let mut state = com;
@@ -488,15 +569,30 @@ impl Generator {
             self.preview.bumpless(&mut state.x, rx[0], &rx[1..=n], u[0]);
             self.preview.bumpless(&mut state.y, ry[0], &ry[1..=n], u[1]);
         }
+        let (px, py) = (
+            self.preview.preview_terms(&rx, ticks),
+            self.preview.preview_terms(&ry, ticks),
+        );
+        let (px, py) = (px.unwrap_or_default(), py.unwrap_or_default());
         let mut samples = Vec::with_capacity(ticks + 1);
+        let mut support = Support::default();
+        let mut cursor = tl.cursor();
         for k in 0..=ticks {
             let t = tl.start + k as f64 * dt;
-            samples.push(self.sample(&tl, t, state));
+            samples.push(self.sample(&tl, t, state, Some(refs[k]), &mut support, &mut cursor));
             if k < ticks {
-                self.preview
-                    .tick(&mut state.x, rx[k], &rx[k + 1..k + 1 + n]);
-                self.preview
-                    .tick(&mut state.y, ry[k], &ry[k + 1..k + 1 + n]);
+                match (px.get(k), py.get(k)) {
+                    (Some(&a), Some(&b)) => {
+                        self.preview.tick_with(&mut state.x, rx[k], a);
+                        self.preview.tick_with(&mut state.y, ry[k], b);
+                    }
+                    _ => {
+                        self.preview
+                            .tick(&mut state.x, rx[k], &rx[k + 1..k + 1 + n]);
+                        self.preview
+                            .tick(&mut state.y, ry[k], &ry[k + 1..k + 1 + n]);
+                    }
+                }
             }
         }
         Pattern {
@@ -521,10 +617,12 @@ impl Generator {
             ));
         }
         let full_tl = self.timeline(start, steps, &[])?;
-        let full = self.preview_pattern(full_tl, start.com, start.jerk, Vec::new());
         if steps.len() < 2 {
-            return Ok(full);
+            return Ok(self.preview_pattern(full_tl, start.com, start.jerk, Vec::new()));
         }
+        // The preview controller walks the first step: its samples up to the second's lift.
+        let until = full_tl.steps[1].lift + self.cfg.preview.period;
+        let full = self.preview_pattern_until(full_tl, start.com, start.jerk, Vec::new(), until);
         let p = &self.pendulum;
         let t_sup = self.cfg.placement.t_sup;
         let dt = self.cfg.preview.period;
@@ -590,6 +688,8 @@ impl Generator {
         let mut samples: Vec<Sample> = full.samples[..k1].to_vec();
         // Every placed step's support, and the last foot's, which brings the COM over it.
         let k_walk = (t_sup * (placed_steps.len() + 1) as f64 / dt).round() as usize;
+        let mut support = Support::default();
+        let mut cursor = tl.cursor();
         for k in 0..k_walk {
             let t = t1 + k as f64 * dt;
             // (The timeline's supports change at the same instants, to rounding.)
@@ -605,7 +705,7 @@ impl Generator {
                     err_sum: 0.0,
                 },
             };
-            samples.push(self.sample(&tl, t, com));
+            samples.push(self.sample(&tl, t, com, None, &mut support, &mut cursor));
         }
         // The settle from the last support's end, by the preview controller.
         let last = &supports[placed_steps.len()];

@@ -146,6 +146,28 @@ fn dare(a: &M4, b: &V4, q: &M4, r: f64) -> Result<M4, GaitError> {
     ))
 }
 
+/// Σ a_i b_i over the shorter of the two, in eight running sums (the additions of one sum
+/// wait for each other; eight at once keep the processor's adders busy and let the compiler
+/// use its vector registers).
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut acc = [0.0; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..8 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    let mut tail = 0.0;
+    for (x, y) in ra.iter().zip(rb) {
+        tail += x * y;
+    }
+    (acc[0] + acc[4]) + (acc[1] + acc[5]) + (acc[2] + acc[6]) + (acc[3] + acc[7]) + tail
+}
+
 /// The preview controller's gains for one COM height.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Preview {
@@ -290,12 +312,15 @@ impl Preview {
     /// N of them; see [`Preview::horizon_ticks`]). Returns the jerk applied.
     #[inline]
     pub fn tick(&self, cart: &mut Cart, now: f64, ahead: &[f64]) -> f64 {
+        self.tick_with(cart, now, dot(&self.gp, ahead))
+    }
+
+    /// [`Preview::tick`] with its preview term Σ G_p(j) p_ref,k+j given (see
+    /// [`Preview::preview_terms`]).
+    #[inline]
+    pub fn tick_with(&self, cart: &mut Cart, now: f64, preview: f64) -> f64 {
         let x = cart.x;
         cart.err_sum += self.zmp(&x) - now;
-        let mut preview = 0.0;
-        for (g, p) in self.gp.iter().zip(ahead) {
-            preview += g * p;
-        }
         let u = -self.gi * cart.err_sum
             - (self.gx[0] * x[0] + self.gx[1] * x[1] + self.gx[2] * x[2])
             - preview;
@@ -314,13 +339,80 @@ impl Preview {
     /// a free state of the controller, carries the difference away over time.
     pub fn bumpless(&self, cart: &mut Cart, now: f64, ahead: &[f64], u: f64) {
         let x = cart.x;
-        let mut preview = 0.0;
-        for (g, p) in self.gp.iter().zip(ahead) {
-            preview += g * p;
-        }
+        let preview = dot(&self.gp, ahead);
         let sum =
             -(u + self.gx[0] * x[0] + self.gx[1] * x[1] + self.gx[2] * x[2] + preview) / self.gi;
         cart.err_sum = sum - (self.zmp(&x) - now);
+    }
+
+    /// The preview terms Σ_{j=1..N} G_p(j) · reference[k + j] of the ticks k in `0..ticks`
+    /// at once (`reference` holds at least `ticks + N` samples). A ZMP reference is made of
+    /// straight runs (constant on a sole, a line across a double support): each run's share
+    /// of a horizon comes from two running sums of the gains (Σ G_p(j) and Σ j G_p(j)), a
+    /// few operations for each run in the horizon instead of N multiplications. Equal to the
+    /// direct sums up to rounding; any reference works (a curved one makes short runs).
+    pub fn preview_terms(&self, reference: &[f64], ticks: usize) -> Result<Vec<f64>, GaitError> {
+        let n = self.gp.len();
+        if reference.len() < ticks + n {
+            return Err(GaitError::Parameter(format!(
+                "preview control: {} references for {ticks} ticks and a horizon of {n}",
+                reference.len()
+            )));
+        }
+        // Running sums from j = 1: s0[m] = Σ_{j≤m} G_p(j), s1[m] = Σ_{j≤m} j G_p(j).
+        let mut s0 = vec![0.0; n + 1];
+        let mut s1 = vec![0.0; n + 1];
+        for j in 1..=n {
+            s0[j] = s0[j - 1] + self.gp[j - 1];
+            s1[j] = s1[j - 1] + j as f64 * self.gp[j - 1];
+        }
+        // The runs: [first, last] with reference[i] = value + slope · (i − first).
+        let end = ticks + n;
+        let mut runs: Vec<(usize, usize, f64, f64)> = Vec::new();
+        let mut a = 0;
+        while a < end {
+            let v = reference[a];
+            let slope = if a + 1 < end {
+                reference[a + 1] - v
+            } else {
+                0.0
+            };
+            let mut b = (a + 1).min(end - 1);
+            while b + 1 < end {
+                let want = v + slope * (b + 1 - a) as f64;
+                if (reference[b + 1] - want).abs() > 1e-12 * (1.0 + want.abs()) {
+                    break;
+                }
+                b += 1;
+            }
+            if !(v.is_finite() && slope.is_finite()) {
+                return Err(GaitError::Parameter(
+                    "preview control: a reference that is not finite".into(),
+                ));
+            }
+            runs.push((a, b, v, slope));
+            a = b + 1;
+        }
+        let mut out = Vec::with_capacity(ticks);
+        let mut first = 0;
+        for k in 0..ticks {
+            // The horizon: reference indices k + 1 ..= k + n.
+            while runs[first].1 < k + 1 {
+                first += 1;
+            }
+            let mut sum = 0.0;
+            for &(lo, hi, v, slope) in &runs[first..] {
+                if lo > k + n {
+                    break;
+                }
+                let (j0, j1) = (lo.max(k + 1) - k, hi.min(k + n) - k);
+                // Σ_{j0..=j1} G_p(j) (v + slope (k + j − lo)).
+                let base = v + slope * (k as f64 - lo as f64);
+                sum += base * (s0[j1] - s0[j0 - 1]) + slope * (s1[j1] - s1[j0 - 1]);
+            }
+            out.push(sum);
+        }
+        Ok(out)
     }
 
     /// Runs one axis over a whole reference: from `cart`, a tick per reference sample

@@ -20,6 +20,8 @@ pub struct Spline {
     m: Vec<f64>,
     /// Velocity and acceleration before the first knot and after the last.
     ends: [[f64; 2]; 2],
+    /// Each interval's cubic in the time from its first knot: c0 + c1 w + c2 w² + c3 w³.
+    coef: Vec<[f64; 4]>,
 }
 
 /// Solves `a · x = b` (a square, row-major) by Gaussian elimination with partial pivoting.
@@ -148,11 +150,27 @@ impl Spline {
         mv[0] = m0;
         mv[m] = mm;
         mv[1..m].copy_from_slice(&x[..m - 1]);
+        // p = M_i u³/6h + M_{i+1} w³/6h + A u + B w (u = h − w, A = q_i/h − M_i h/6,
+        // B = q_{i+1}/h − M_{i+1} h/6), expanded in w.
+        let coef = (0..m)
+            .map(|i| {
+                let (hi, m0, m1) = (h[i], mv[i], mv[i + 1]);
+                let a = q[i] / hi - m0 * hi / 6.0;
+                let b = q[i + 1] / hi - m1 * hi / 6.0;
+                [
+                    q[i],
+                    b - a - m0 * hi / 2.0,
+                    m0 / 2.0,
+                    (m1 - m0) / (6.0 * hi),
+                ]
+            })
+            .collect();
         Ok(Spline {
             t,
             q,
             m: mv,
             ends: [start, end],
+            coef,
         })
     }
 
@@ -163,30 +181,43 @@ impl Spline {
 
     /// Position, velocity and acceleration at `t` (outside the knots, continued with the end's
     /// velocity and acceleration: at rest, held).
+    #[inline]
     pub fn eval(&self, t: f64) -> [f64; 3] {
+        self.eval_in(self.interval(t), t)
+    }
+
+    /// The interval of the knots holding `t` (None before the first knot or after the last).
+    #[inline]
+    fn interval(&self, t: f64) -> Option<usize> {
         let last = self.t.len() - 1;
+        if t < self.t[0] || t > self.t[last] {
+            return None;
+        }
+        Some(self.t.partition_point(|&k| k <= t).clamp(1, last) - 1)
+    }
+
+    /// [`Spline::eval`] with `t`'s interval found ([`Spline::interval`] of this spline or of
+    /// one with the same knots).
+    #[inline]
+    fn eval_in(&self, interval: Option<usize>, t: f64) -> [f64; 3] {
+        let last = self.t.len() - 1;
+        if let Some(i) = interval {
+            let w = t - self.t[i];
+            let [c0, c1, c2, c3] = self.coef[i];
+            return [
+                c0 + w * (c1 + w * (c2 + w * c3)),
+                c1 + w * (2.0 * c2 + 3.0 * c3 * w),
+                2.0 * c2 + 6.0 * c3 * w,
+            ];
+        }
         if t < self.t[0] {
             let [v, a] = self.ends[0];
             let d = t - self.t[0];
             return [self.q[0] + v * d + a * d * d / 2.0, v + a * d, a];
         }
-        if t > self.t[last] {
-            let [v, a] = self.ends[1];
-            let d = t - self.t[last];
-            return [self.q[last] + v * d + a * d * d / 2.0, v + a * d, a];
-        }
-        let i = self.t.partition_point(|&k| k <= t).clamp(1, last) - 1;
-        let h = self.t[i + 1] - self.t[i];
-        let (u, w) = (self.t[i + 1] - t, t - self.t[i]);
-        let (m0, m1, q0, q1) = (self.m[i], self.m[i + 1], self.q[i], self.q[i + 1]);
-        let pos = m0 * u.powi(3) / (6.0 * h)
-            + m1 * w.powi(3) / (6.0 * h)
-            + (q0 / h - m0 * h / 6.0) * u
-            + (q1 / h - m1 * h / 6.0) * w;
-        let vel = -m0 * u * u / (2.0 * h) + m1 * w * w / (2.0 * h) - (q0 / h - m0 * h / 6.0)
-            + (q1 / h - m1 * h / 6.0);
-        let acc = (m0 * u + m1 * w) / h;
-        [pos, vel, acc]
+        let [v, a] = self.ends[1];
+        let d = t - self.t[last];
+        [self.q[last] + v * d + a * d * d / 2.0, v + a * d, a]
     }
 }
 
@@ -328,8 +359,11 @@ impl SwingPath {
     }
 
     /// Place, velocity and acceleration of the foot at `t` seconds into the swing.
+    #[inline]
     pub fn at(&self, t: f64) -> [Place; 3] {
-        let e = self.axes.each_ref().map(|a| a.eval(t));
+        // The axes share their knots (the via points' times).
+        let i = self.axes[0].interval(t);
+        let e = self.axes.each_ref().map(|a| a.eval_in(i, t));
         [
             std::array::from_fn(|k| e[k][0]),
             std::array::from_fn(|k| e[k][1]),

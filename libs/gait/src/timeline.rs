@@ -291,17 +291,28 @@ impl Timeline {
 
     /// The index of the step under way at `t` (the last started), if any.
     pub fn step_at(&self, t: f64) -> Option<usize> {
-        let i = self.steps.partition_point(|s| s.start <= t);
-        if i == 0 || t >= self.steps[i - 1].land {
+        self.step_started(t, self.steps.partition_point(|s| s.start <= t))
+    }
+
+    /// [`Timeline::step_at`] with `started` the number of steps started by `t`.
+    #[inline]
+    fn step_started(&self, t: f64, started: usize) -> Option<usize> {
+        if started == 0 || t >= self.steps[started - 1].land {
             None
         } else {
-            Some(i - 1)
+            Some(started - 1)
         }
     }
 
     /// The phase at `t`.
     pub fn phase(&self, t: f64) -> Phase {
-        match self.step_at(t) {
+        self.phase_in(t, self.step_at(t))
+    }
+
+    /// The phase at `t` in step `step` (see [`Timeline::step_at`]).
+    #[inline]
+    fn phase_in(&self, t: f64, step: Option<usize>) -> Phase {
+        match step {
             Some(i) if t >= self.steps[i].lift => {
                 let s = &self.steps[i];
                 Phase::Single {
@@ -333,33 +344,63 @@ impl Timeline {
 
     /// The ZMP reference at `t`.
     pub fn zmp_ref(&self, t: f64) -> P2 {
+        let i = self.steps.partition_point(|s| s.start <= t);
+        self.zmp_ref_at(
+            t,
+            i,
+            &|k| self.zmp_point(&self.steps[k].support),
+            self.zmp_end(),
+        )
+    }
+
+    /// The ZMP reference at the times `t0 + k · dt` for k in `0..count`, as
+    /// [`Timeline::zmp_ref`] gives it, each step's point on its sole found once.
+    pub fn zmp_refs(&self, t0: f64, dt: f64, count: usize) -> Vec<P2> {
+        let points: Vec<P2> = self
+            .steps
+            .iter()
+            .map(|s| self.zmp_point(&s.support))
+            .collect();
+        let end = self.zmp_end();
+        let mut i = 0;
+        (0..count)
+            .map(|k| {
+                let t = t0 + k as f64 * dt;
+                while i < self.steps.len() && self.steps[i].start <= t {
+                    i += 1;
+                }
+                self.zmp_ref_at(t, i, &|k| points[k], end)
+            })
+            .collect()
+    }
+
+    /// The ZMP reference at `t`, with `started` the number of steps started by then, a
+    /// step's point on its sole `point(k)` and the end's `end`.
+    fn zmp_ref_at(&self, t: f64, started: usize, point: &dyn Fn(usize) -> P2, end: P2) -> P2 {
         if self.steps.first().is_some_and(|s| t < s.start) {
             return self.zmp_start;
         }
         if t < self.start || self.steps.is_empty() {
             return if self.steps.is_empty() && t >= self.start {
                 let s = ((t - self.shift_from) / (self.settled - self.shift_from)).clamp(0.0, 1.0);
-                lerp(self.zmp_start, self.zmp_end(), s)
+                lerp(self.zmp_start, end, s)
             } else {
                 self.zmp_start
             };
         }
-        let last = self.steps.last().unwrap();
+        let n = self.steps.len();
+        let last = &self.steps[n - 1];
         if t >= last.land {
             let s = ((t - last.land) / (self.settled - last.land)).clamp(0.0, 1.0);
-            return lerp(self.zmp_point(&last.support), self.zmp_end(), s);
+            return lerp(point(n - 1), end, s);
         }
-        let i = self.steps.partition_point(|s| s.start <= t).max(1) - 1;
+        let i = started.max(1) - 1;
         let s = &self.steps[i];
-        let to = self.zmp_point(&s.support);
+        let to = point(i);
         if t >= s.lift {
             return to;
         }
-        let from = if i == 0 {
-            self.zmp_start
-        } else {
-            self.zmp_point(&self.steps[i - 1].support)
-        };
+        let from = if i == 0 { self.zmp_start } else { point(i - 1) };
         lerp(from, to, (t - s.start) / (s.lift - s.start))
     }
 
@@ -391,22 +432,44 @@ impl Timeline {
 
     /// The feet at `t`: each foot's place, velocity and acceleration (left, right).
     pub fn feet(&self, t: f64) -> [[Place; 3]; 2] {
+        self.feet_lifted(t, self.steps.partition_point(|s| s.lift <= t))
+    }
+
+    /// The feet at `t`, with `lifted` the number of steps lifted off by then: each foot is
+    /// where the last step of it took it.
+    #[inline]
+    fn feet_lifted(&self, t: f64, lifted: usize) -> [[Place; 3]; 2] {
         let mut feet = [
             [self.feet_start[0], [0.0; 4], [0.0; 4]],
             [self.feet_start[1], [0.0; 4], [0.0; 4]],
         ];
-        for s in &self.steps {
-            if t < s.lift {
-                break;
-            }
+        let mut found = [false; 2];
+        for s in self.steps[..lifted].iter().rev() {
             let k = s.footstep.side.index();
+            if found[k] {
+                continue;
+            }
+            found[k] = true;
             feet[k] = if t >= s.land {
                 [s.footstep.place, [0.0; 4], [0.0; 4]]
             } else {
                 s.swing.at(t - s.lift)
             };
+            if found[1 - k] {
+                break;
+            }
         }
         feet
+    }
+
+    /// A walk through the timeline at times that never decrease (a pattern's samples): the
+    /// feet and the phase at each, found from where the last were.
+    pub fn cursor(&self) -> Cursor<'_> {
+        Cursor {
+            tl: self,
+            lifted: 0,
+            started: 0,
+        }
     }
 
     /// The feet on the ground at `t` (sole centres and headings).
@@ -416,5 +479,35 @@ impl Timeline {
             Phase::Single { swing, .. } => vec![feet[swing.other().index()][0]],
             Phase::Double { .. } => vec![feet[0][0], feet[1][0]],
         }
+    }
+}
+
+/// See [`Timeline::cursor`]: [`Cursor::at`] gives what [`Timeline::feet`] and
+/// [`Timeline::phase`] give, for times that never decrease.
+#[derive(Debug, Clone)]
+pub struct Cursor<'a> {
+    tl: &'a Timeline,
+    /// Steps lifted off by the last time.
+    lifted: usize,
+    /// Steps started by the last time.
+    started: usize,
+}
+
+impl Cursor<'_> {
+    /// The feet (place, velocity, acceleration; left, right) and the phase at `t`, no
+    /// earlier than the last `t` asked for.
+    #[inline(always)]
+    pub fn at(&mut self, t: f64) -> ([[Place; 3]; 2], Phase) {
+        let steps = &self.tl.steps;
+        while self.lifted < steps.len() && steps[self.lifted].lift <= t {
+            self.lifted += 1;
+        }
+        while self.started < steps.len() && steps[self.started].start <= t {
+            self.started += 1;
+        }
+        let step = self.tl.step_started(t, self.started);
+        let feet = self.tl.feet_lifted(t, self.lifted);
+        let phase = self.tl.phase_in(t, step);
+        (feet, phase)
     }
 }

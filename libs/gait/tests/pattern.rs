@@ -48,6 +48,50 @@ fn the_preview_controller_tracks_a_step_of_its_reference() {
 }
 
 #[test]
+fn the_preview_terms_by_runs_are_the_direct_sums() {
+    // The pattern takes each tick's preview term from the reference's straight runs: the
+    // same as Σ G_p(j) p_ref,k+j, on a walk's reference (runs) and on a curve (none).
+    let p = Preview::new(PreviewConfig::default(), 0.4, 9.80665).unwrap();
+    let n = p.horizon_ticks();
+    let g = common::generator(Kind::Preview);
+    let (l, r) = standing();
+    let walk = g
+        .plan(&g.standing(0.0, l, r), &straight(8, 0.2, 1))
+        .unwrap();
+    let dt = walk.dt;
+    let refs = walk
+        .timeline
+        .zmp_refs(walk.timeline.start, dt, walk.samples.len() + n);
+    // The batch of references is the pointwise one.
+    for (k, r) in refs.iter().enumerate() {
+        let one = walk.timeline.zmp_ref(walk.timeline.start + k as f64 * dt);
+        assert!((r[0] - one[0]).abs() < 1e-15 && (r[1] - one[1]).abs() < 1e-15);
+    }
+    let curve: Vec<f64> = (0..3000 + n).map(|k| (k as f64 * 0.01).sin()).collect();
+    for reference in [
+        refs.iter().map(|r| r[0]).collect::<Vec<f64>>(),
+        refs.iter().map(|r| r[1]).collect(),
+        curve,
+    ] {
+        let ticks = reference.len() - n;
+        let fast = p.preview_terms(&reference, ticks).unwrap();
+        // The direct sums, through a tick from a cart at rest at 0 (its jerk is then the
+        // preview term's negative plus the integral term of the first error).
+        for (k, f) in fast.iter().enumerate() {
+            let mut cart = Cart::default();
+            let u = p.tick(&mut cart, 0.0, &reference[k + 1..k + 1 + n]);
+            let mut again = Cart::default();
+            let v = p.tick_with(&mut again, 0.0, *f);
+            assert!(
+                (u - v).abs() < 1e-9 * (1.0 + u.abs()),
+                "tick {k}: {u} vs {v}"
+            );
+        }
+    }
+    assert!(p.preview_terms(&[0.0; 10], 100).is_err());
+}
+
+#[test]
 fn a_straight_walk_keeps_the_zmp_a_centimetre_inside_its_soles() {
     for kind in [Kind::Preview, Kind::FootPlacement] {
         let mut cfg = config(kind);

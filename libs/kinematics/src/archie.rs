@@ -144,16 +144,31 @@ pub fn fk(links: &Links, leg: Leg, q: &Q) -> Pose {
 
 /// Forward kinematics with the leg's points on the way (for the links' masses).
 pub fn fk_points(links: &Links, leg: Leg, q: &Q) -> (Pose, LegPoints) {
+    fk_points_sc(
+        links,
+        leg,
+        &q.map(|a| {
+            let (s, c) = a.sin_cos();
+            [s, c]
+        }),
+    )
+}
+
+/// [`fk_points`] from each joint's sine and cosine.
+fn fk_points_sc(links: &Links, leg: Leg, sc: &[[f64; 2]; 6]) -> (Pose, LegPoints) {
+    let rx = |[s, c]: [f64; 2]| [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]];
+    let ry = |[s, c]: [f64; 2]| [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]];
+    let rz = |[s, c]: [f64; 2]| [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]];
     let s = leg.sign();
     let h = hip(links, leg);
-    let r_hip = mul(&mul(&rz(q[0]), &rx(q[1])), &ry(q[2]));
+    let r_hip = mul(&mul(&rz(sc[0]), &rx(sc[1])), &ry(sc[2]));
     let top = crate::math::add(&h, &mv(&r_hip, &[0.0, s * links.d3, 0.0]));
     let knee = crate::math::add(&top, &mv(&r_hip, &[0.0, 0.0, -links.a3]));
-    let r_shank = mul(&r_hip, &ry(q[3]));
+    let r_shank = mul(&r_hip, &ry(sc[3]));
     let pitch = crate::math::add(&knee, &mv(&r_shank, &[0.0, 0.0, -links.a2]));
-    let r_link = mul(&r_shank, &ry(q[4]));
+    let r_link = mul(&r_shank, &ry(sc[4]));
     let roll = crate::math::add(&pitch, &mv(&r_link, &[0.0, 0.0, -links.a1]));
-    let r_foot = mul(&r_link, &rx(q[5]));
+    let r_foot = mul(&r_link, &rx(sc[5]));
     let sole = crate::math::add(&roll, &mv(&r_foot, &[0.0, 0.0, -links.sole]));
     (Pose { r: r_foot, p: sole }, [h, knee, pitch, roll, sole])
 }
@@ -184,6 +199,12 @@ fn wrap(a: f64) -> f64 {
 /// ankle's a1); the hip's yaw, roll and pitch are what rotation is left. An error, never NaN,
 /// for a sole out of reach or a hip roll of ±90° (where yaw and pitch are one).
 pub fn ik(links: &Links, leg: Leg, sole: &Pose) -> Result<Q, KinError> {
+    ik_sc(links, leg, sole).map(|(q, _)| q)
+}
+
+/// [`ik`], with each joint's sine and cosine as the solution found them (no trigonometry
+/// beyond the angles' own).
+fn ik_sc(links: &Links, leg: Leg, sole: &Pose) -> Result<(Q, [[f64; 2]; 6]), KinError> {
     if !(sole
         .p
         .iter()
@@ -217,6 +238,14 @@ pub fn ik(links: &Links, leg: Leg, sole: &Pose) -> Result<Q, KinError> {
     }
     let z = yz2.sqrt();
     let q5 = wrap(z.atan2(y0) - r[2].atan2(r[1]));
+    // q5 = atan2(z, y0) − atan2(r_z, r_y), both vectors of length ρ (z² + y0² = r_y² + r_z²).
+    let rho2 = r[1] * r[1] + r[2] * r[2];
+    let sc5 = if rho2 > 1e-24 {
+        [(z * r[1] - y0 * r[2]) / rho2, (y0 * r[1] + z * r[2]) / rho2]
+    } else {
+        let (s, c) = q5.sin_cos();
+        [s, c]
+    };
     // The pitch plane: X = −a2 sin q4 − a3 sin(q3 + q4), Z − a1 = a2 cos q4 + a3 cos(q3 + q4).
     let (x, zp) = (r[0], z - links.a1);
     let (a2, a3) = (links.a2, links.a3);
@@ -229,12 +258,26 @@ pub fn ik(links: &Links, leg: Leg, sole: &Pose) -> Result<Q, KinError> {
         )));
     }
     let q3 = c3.acos();
-    let (k1, k2) = (a2 + a3 * q3.cos(), a3 * q3.sin());
+    let s3 = (1.0 - c3 * c3).max(0.0).sqrt();
+    let (k1, k2) = (a2 + a3 * c3, a3 * s3);
     let q4 = wrap((-x).atan2(zp) - k2.atan2(k1));
+    // q4 = atan2(−x, zp) − atan2(k2, k1).
+    let norms = (x * x + zp * zp).sqrt() * (k1 * k1 + k2 * k2).sqrt();
+    let [s4, c4] = if norms > 1e-12 {
+        [(-x * k1 - zp * k2) / norms, (zp * k1 - x * k2) / norms]
+    } else {
+        let (s, c) = q4.sin_cos();
+        [s, c]
+    };
+    let (s34, c34) = (s3 * c4 + c3 * s4, c3 * c4 - s3 * s4);
     // The hip: Rz(q0) Rx(q1) Ry(q2) = R_f Rx(−q5) Ry(−(q3 + q4)).
-    let m = mul(&mul(&r_f, &rx(-q5)), &ry(-(q3 + q4)));
+    let [s5, c5] = sc5;
+    let rx5 = [[1.0, 0.0, 0.0], [0.0, c5, s5], [0.0, -s5, c5]];
+    let ry34 = [[c34, 0.0, -s34], [0.0, 1.0, 0.0], [s34, 0.0, c34]];
+    let m = mul(&mul(&r_f, &rx5), &ry34);
     let sb = m[2][1];
-    if !(-1.0..=1.0).contains(&sb) || (1.0 - sb * sb).sqrt() < 1e-9 {
+    let cb = (1.0 - sb * sb).sqrt();
+    if !(-1.0..=1.0).contains(&sb) || cb < 1e-9 {
         return Err(KinError::Singular(format!(
             "{} hip roll at ±90°: yaw and pitch turn about one axis",
             leg.name()
@@ -243,7 +286,16 @@ pub fn ik(links: &Links, leg: Leg, sole: &Pose) -> Result<Q, KinError> {
     let q1 = sb.asin();
     let q0 = (-m[0][1]).atan2(m[1][1]);
     let q2 = (-m[2][0]).atan2(m[2][2]);
-    Ok([q0, q1, q2, q3, q4, q5])
+    // m = Rz(q0) Rx(q1) Ry(q2): m01 = −s0 c1, m11 = c0 c1, m20 = −c1 s2, m22 = c1 c2.
+    let sc = [
+        [-m[0][1] / cb, m[1][1] / cb],
+        [sb, cb],
+        [-m[2][0] / cb, m[2][2] / cb],
+        [s3, c3],
+        [s4, c4],
+        sc5,
+    ];
+    Ok(([q0, q1, q2, q3, q4, q5], sc))
 }
 
 /// The difference of two poses as a 6-vector: translation (m) and rotation vector (rad) of
@@ -343,14 +395,29 @@ pub fn ik_dls(links: &Links, leg: Leg, sole: &Pose, q0: &Q) -> Result<Q, KinErro
 /// damped least squares from `near` (the last solution). Either way the answer's forward
 /// kinematics must meet the pose within 1e-9 m and 1e-9 rad.
 pub fn solve(links: &Links, leg: Leg, sole: &Pose, near: &Q) -> Result<Q, KinError> {
-    let q = match ik(links, leg, sole) {
-        Ok(q) => q,
-        Err(KinError::Singular(_)) => ik_dls(links, leg, sole, near)?,
+    solve_points(links, leg, sole, near).map(|(q, _)| q)
+}
+
+/// [`solve`], with the leg's points of the check's forward kinematics (see [`fk_points`]).
+pub fn solve_points(
+    links: &Links,
+    leg: Leg,
+    sole: &Pose,
+    near: &Q,
+) -> Result<(Q, LegPoints), KinError> {
+    // The check's forward kinematics from the sines and cosines the closed form found with
+    // its angles (the numeric fallback's from its angles).
+    let (q, (at, points)) = match ik_sc(links, leg, sole) {
+        Ok((q, sc)) => (q, fk_points_sc(links, leg, &sc)),
+        Err(KinError::Singular(_)) => {
+            let q = ik_dls(links, leg, sole, near)?;
+            (q, fk_points(links, leg, &q))
+        }
         Err(e) => return Err(e),
     };
-    let (dp, dr) = fk(links, leg, &q).distance(sole);
+    let (dp, dr) = at.distance(sole);
     if dp < 1e-9 && dr < 1e-9 {
-        Ok(q)
+        Ok((q, points))
     } else {
         Err(KinError::Unreachable(format!(
             "{} foot: the solution misses the pose by {dp:.2e} m, {dr:.2e} rad",
@@ -854,5 +921,44 @@ impl ArchieConfig {
         let (s, c) = yaw.sin_cos();
         let b = self.foot.centre_ahead;
         Pose::yawed([centre[0] - c * b, centre[1] - s * b, centre[2]], yaw)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_closed_forms_sines_and_cosines_are_its_angles() {
+        // The check of `solve` runs forward kinematics on the sines and cosines the closed
+        // form found; they must be those of the angles it returns.
+        let links = Links::SCRIPT;
+        let mut seed = 11u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut checked = 0;
+        for i in 0..2000 {
+            let leg = if i % 2 == 0 { Leg::Left } else { Leg::Right };
+            let q: Q = [
+                rnd() - 0.5,
+                rnd() - 0.5,
+                -1.5 + 2.0 * rnd(),
+                0.05 + 2.0 * rnd(),
+                -1.0 + 2.0 * rnd(),
+                rnd() - 0.5,
+            ];
+            let Ok((got, sc)) = ik_sc(&links, leg, &fk(&links, leg, &q)) else {
+                continue;
+            };
+            for (a, [s, c]) in got.iter().zip(sc) {
+                assert!((a.sin() - s).abs() < 1e-9 && (a.cos() - c).abs() < 1e-9);
+            }
+            checked += 1;
+        }
+        assert!(checked > 1900, "{checked}");
     }
 }

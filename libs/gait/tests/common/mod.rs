@@ -88,3 +88,92 @@ pub fn straight(n: usize, length: f64, first: i64) -> Vec<Footstep> {
         })
         .collect()
 }
+
+/// A shipped scene's plan, as the gait walks it from standing.
+pub struct SceneWalk {
+    /// The scene's name.
+    pub name: String,
+    /// Planned by Archie's planner (with steps no longer than the gait takes).
+    pub archie: bool,
+    /// Where the feet stand: left, right.
+    pub feet: (Place, Place),
+    /// The plan's steps, numbered from 1.
+    pub steps: Vec<Footstep>,
+}
+
+/// Every shipped scene (config/scenes/{archie,kaist,lola}) planned by its improved planner:
+/// the walk, or the scene's name and why there is none.
+pub fn scene_walks() -> Vec<Result<SceneWalk, (String, String)>> {
+    use stride_footstep::plan::{Foot, Status};
+    use stride_footstep::planner::{for_scene, plan, scene_request, Which};
+    use stride_footstep::scene::Scene;
+    let place = |f: &Foot| [f.p.x, f.p.y, f.z, f.yaw];
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes");
+    let mut out = Vec::new();
+    for dir in ["archie", "kaist", "lola"] {
+        let mut files: Vec<std::path::PathBuf> = std::fs::read_dir(root.join(dir))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+            .collect();
+        files.sort();
+        for f in files {
+            let scene = Scene::load(&f).unwrap();
+            let which = for_scene(&scene);
+            let mut req = scene_request(&scene, false);
+            if which == Which::Archie {
+                req.max_step = Some(0.25);
+            }
+            let p = plan(&req, &scene, std::time::Duration::from_millis(300));
+            if !matches!(p.status, Status::Ok | Status::Partial) || p.steps.len() < 3 {
+                out.push(Err((scene.name.clone(), p.status.name().to_string())));
+                continue;
+            }
+            // The feet where they stand: the plan lists them first (Archie's planner the
+            // standing foot only; the other beside it at the planner's stance).
+            let n = which.standing();
+            let (mut left, mut right) = Foot::standing(scene.start.p(), scene.start.yaw, 0.2);
+            for f in &p.steps[..n] {
+                if f.left {
+                    left = *f;
+                } else {
+                    right = *f;
+                }
+            }
+            let steps = p.steps[n..]
+                .iter()
+                .enumerate()
+                .map(|(i, f)| Footstep {
+                    number: i as i64 + 1,
+                    side: if f.left { Side::Left } else { Side::Right },
+                    place: place(f),
+                    swing_height: 0.0,
+                    duration: 0.0,
+                    padding: false,
+                })
+                .collect();
+            out.push(Ok(SceneWalk {
+                name: scene.name.clone(),
+                archie: which == Which::Archie,
+                feet: (place(&left), place(&right)),
+                steps,
+            }));
+        }
+    }
+    out
+}
+
+/// How many of a pattern's steps (the first's aside: its double support is the start's
+/// shift) were given more time than the timing rule's to keep the ZMP inside.
+pub fn stretched(g: &Generator, pat: &stride_gait::pattern::Pattern, steps: &[Footstep]) -> usize {
+    pat.timeline
+        .steps
+        .iter()
+        .zip(steps)
+        .skip(1)
+        .filter(|(s, f)| {
+            let travel = (f.place[0] - s.from[0]).hypot(f.place[1] - s.from[1]);
+            s.land - s.start > g.config().timing.step_time(travel) + 1e-9
+        })
+        .count()
+}
