@@ -291,6 +291,7 @@ fn every_type_matches_its_json_schema() {
         FootstepPlanRequestT,
         FootstepPlanT,
         FootstepT,
+        GaitCommandT,
         HeaderT,
         ImageT,
         ImuT,

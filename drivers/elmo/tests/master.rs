@@ -164,13 +164,12 @@ fn start_utime_is_honoured() {
         "moved before its start"
     );
     let after = r.record(Duration::from_millis(500));
-    // It started at its time (within a SYNC period and the motor's lag).
-    let moved = after
-        .iter()
-        .find(|(_, p)| p[0].abs() > 1e-3)
-        .expect("it moved");
-    let late = moved.0.saturating_duration_since(a.start);
-    assert!(late < Duration::from_millis(40), "{late:?}");
+    // It played at its time: halfway (0.1 rad) 150 ms after its start, give or take what a
+    // busy machine adds to the states' delivery; a start ignored would be 600 ms early.
+    let half = after.iter().find(|(_, p)| p[0] >= 0.1).expect("it moved").0;
+    let due = a.start + Duration::from_millis(150);
+    let off = if half > due { half - due } else { due - half };
+    assert!(off < Duration::from_millis(150), "{off:?} off");
     assert!((r.positions()[0] - 0.2).abs() < 1e-3);
     // A start that has passed, or beyond the queue's bound, is refused.
     t.start = Start::At(wall(Duration::ZERO) - 2_000_000);
