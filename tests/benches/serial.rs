@@ -171,8 +171,8 @@ fn schedule(model: &str, n: u8) -> Vec<(usize, usize)> {
 struct Cycles {
     p50: f64,
     p99: f64,
-    /// The wire time of one cycle's bytes.
-    wire: f64,
+    /// Bytes on the line over all measured cycles (repeated tries included).
+    bytes: u64,
     /// The host software's own time per cycle (the cycle less the time inside the transport),
     /// median.
     software_p50: f64,
@@ -235,9 +235,7 @@ fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> Cycles {
         times.push(dt);
         own.push(dt - (io_ns.load(Ordering::Relaxed) - io0) as f64 * 1e-9);
     }
-    let bytes = (out.load(Ordering::Relaxed) - o0 + inn.load(Ordering::Relaxed) - i0) as f64
-        / cycles as f64;
-    let wire = wire_time(bytes.round() as usize, baud).as_secs_f64();
+    let bytes = out.load(Ordering::Relaxed) - o0 + inn.load(Ordering::Relaxed) - i0;
     let s1 = c.bus().stats();
     // A timeout is counted for each try that is repeated and once more for a read given up.
     let retried = s1.retries - s0.retries;
@@ -248,7 +246,7 @@ fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> Cycles {
     Cycles {
         p50: pct(&mut times.clone(), 50.0),
         p99: pct(&mut times, 99.0),
-        wire,
+        bytes,
         software_p50: pct(&mut own, 50.0),
         tries,
         retried,
@@ -427,13 +425,20 @@ fn main() {
         ("Protocol 2.0, 4 Mbit/s", "XM430-W350", 12, 4_000_000),
     ] {
         let c = dynamixel(model, n, baud, cycles);
-        let wire = c.wire;
         let sched = schedule(model, n);
         let sched_bytes: usize = sched.iter().map(|(a, b)| a + b).sum();
+        // The line carried every cycle's schedule, plus at most one transaction's bytes for
+        // each try repeated or given up (a late answer is read and dropped).
+        let extra = c.bytes as i64 - (sched_bytes * cycles) as i64;
+        let largest = sched.iter().map(|(a, b)| a + b).max().unwrap_or(0) as i64;
         assert!(
-            (wire_time(sched_bytes, baud).as_secs_f64() - wire).abs() < 1e-6,
-            "the schedule of {model} is not the bridge's cycle"
+            (0..=(c.retried + c.gave_up) as i64 * largest).contains(&extra),
+            "the schedule of {model} ({sched_bytes} bytes a cycle) is not the bridge's cycle \
+             ({} bytes over {cycles} cycles, {} tries repeated)",
+            c.bytes,
+            c.retried
         );
+        let wire = wire_time(sched_bytes, baud).as_secs_f64();
         let floor = pty_floor(&sched, baud, cycles);
         let raw = c.p50 / wire;
         let less_floor = (wire + (c.p50 - floor).max(0.0)) / wire;
