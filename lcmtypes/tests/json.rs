@@ -257,7 +257,8 @@ fn mcap_schemas_have_no_array_of_arrays() {
             "stride.joint_trajectory_t",
             "stride.obstacle_list_t",
             "stride.obstacle_t",
-            "stride.point_cloud_t"
+            "stride.point_cloud_t",
+            "stride.sim_report_t"
         ]
     );
     assert_eq!(nested_json_schema("stride.no_such_t"), None);
@@ -298,6 +299,10 @@ fn every_type_matches_its_json_schema() {
         JointCommandT,
         JointStateT,
         JointTrajectoryT,
+        LaunchAppT,
+        LaunchConsoleT,
+        LaunchOrderT,
+        LaunchStatusT,
         NodeStatusT,
         ObstacleListT,
         ObstacleT,
@@ -306,6 +311,7 @@ fn every_type_matches_its_json_schema() {
         PointCloudT,
         PoseStampedT,
         PoseT,
+        SimReportT,
         StepCounterT,
         StereoImageT,
         TrajectoryStatusT,

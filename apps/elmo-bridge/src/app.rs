@@ -7,7 +7,7 @@ use stride_canbus::{BusSpec, CanBus, MemBus};
 use stride_elmo::Master;
 use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
 use stride_fakes::Sim;
-use stride_lcmtypes::stride::{JointTrajectoryT, NodeStatusT};
+use stride_lcmtypes::stride::{GaitCommandT, JointTrajectoryT, NodeStatusT};
 use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Stamper, Throttle, Tick};
 
 use crate::{Bridge, BridgeConfig};
@@ -39,6 +39,10 @@ use crate::{Bridge, BridgeConfig};
 pub struct Cli {
     #[command(flatten)]
     node: NodeArgs,
+    /// The bus, instead of the configuration's `bus` (e.g. lcm:left to reach fake drives in
+    /// another process).
+    #[arg(long, value_name = "SPEC")]
+    pub bus: Option<BusSpec>,
 }
 
 stride_node::node_cli!(Cli);
@@ -94,6 +98,8 @@ pub struct ElmoApp<'n> {
     _sim: Option<Sim<FakeElmo>>,
     _sub: lcm::Subscription,
     rx: std::sync::mpsc::Receiver<JointTrajectoryT>,
+    _stop_sub: lcm::Subscription,
+    stops: std::sync::mpsc::Receiver<GaitCommandT>,
     cfg: BridgeConfig,
     throttle: Throttle,
     states: Stamper,
@@ -118,12 +124,15 @@ impl<'n> ElmoApp<'n> {
         let bridge = Bridge::new(master, cfg.recovery_delay_ms);
         // Listen before saying so: a trajectory sent on seeing RUNNING must not be lost.
         let (sub, rx) = node.queue::<JointTrajectoryT>(&cfg.trajectory_channel)?;
+        let (stop_sub, stops) = node.queue::<GaitCommandT>(&cfg.stop_channel)?;
         let now = Instant::now();
         Ok(ElmoApp {
             bridge,
             _sim: sim,
             _sub: sub,
             rx,
+            _stop_sub: stop_sub,
+            stops,
             period: Duration::from_secs_f64(1.0 / cfg.state_rate_hz),
             cfg,
             throttle: Throttle::new(Duration::from_secs(5)),
@@ -137,6 +146,13 @@ impl<'n> ElmoApp<'n> {
 
 impl Tick for ElmoApp<'_> {
     fn tick(&mut self, node: &Node, now: Instant) -> anyhow::Result<Instant> {
+        while let Ok(c) = self.stops.try_recv() {
+            match c.command {
+                GaitCommandT::COMMAND_STOP => self.throttle.log(self.bridge.system_stop(&c.reason)),
+                GaitCommandT::COMMAND_RESUME => self.throttle.log(self.bridge.resume()),
+                _ => {}
+            }
+        }
         while let Ok(m) = self.rx.try_recv() {
             self.throttle.log(self.bridge.on_trajectory(&m, now));
         }

@@ -31,6 +31,9 @@ pub struct BridgeConfig {
     pub state_channel: String,
     /// Channel of outgoing `stride.trajectory_status_t`.
     pub trajectory_status_channel: String,
+    /// The system stop (`stride.gait_command_t` STOP and RESUME from the launcher or `stride
+    /// estop`): STOP quick-stops every axis and refuses trajectories until RESUME.
+    pub stop_channel: String,
     /// Joint state rate (and SYNC rate), Hz.
     pub state_rate_hz: f64,
     /// How far ahead of the drives' play rows are sent, ms: a trajectory replaces what is
@@ -71,6 +74,7 @@ impl Default for BridgeConfig {
             trajectory_channel: "JOINT_TRAJECTORY".into(),
             state_channel: "JOINT_STATE".into(),
             trajectory_status_channel: "JOINT_TRAJECTORY_STATUS".into(),
+            stop_channel: "STRIDE_STOP".into(),
             state_rate_hz: 100.0,
             lookahead_ms: 100,
             max_queue_ms: 10_000,
@@ -292,6 +296,8 @@ pub struct Bridge<B: CanBus> {
     last_accepted: i64,
     /// Trajectories refused before the master saw them (a mode, the drives down).
     refused_here: u64,
+    /// The system stop in force, and why.
+    held: Option<String>,
     /// Something a status should say at once.
     changed: bool,
 }
@@ -315,7 +321,32 @@ impl<B: CanBus> Bridge<B> {
             last_refused: -1,
             last_accepted: -1,
             refused_here: 0,
+            held: None,
             changed: true,
+        }
+    }
+
+    /// The system stop: every axis quick-stops (decelerating within its limits) and holds;
+    /// trajectories are refused until [`Bridge::resume`].
+    pub fn system_stop(&mut self, why: &str) -> Vec<Note> {
+        let mut notes = Vec::new();
+        if self.held.is_none() {
+            self.held = Some(why.to_owned());
+            if self.down.is_none() {
+                self.stop(format!("system stop ({why})"), &mut notes);
+            }
+        }
+        notes
+    }
+
+    /// The system stop lifted: the next valid trajectory enables the drives again.
+    pub fn resume(&mut self) -> Vec<Note> {
+        match self.held.take() {
+            Some(_) => {
+                self.changed = true;
+                vec![Note::Info("system stop lifted".into())]
+            }
+            None => Vec::new(),
         }
     }
 
@@ -345,6 +376,12 @@ impl<B: CanBus> Bridge<B> {
     /// A trajectory from the bus: converted, checked and queued, or refused whole (the
     /// reason in the health and the status, counted).
     pub fn on_trajectory(&mut self, m: &JointTrajectoryT, now: Instant) -> Vec<Note> {
+        if let Some(why) = &self.held {
+            let e = format!("trajectory refused: system stop ({why}) until resumed");
+            self.refused_here += 1;
+            self.refused(m, e.clone());
+            return vec![Note::Warn(e)];
+        }
         if let Some(why) = &self.down {
             let e = format!("trajectory refused: the drives are down ({why})");
             self.refused_here += 1;
@@ -513,6 +550,12 @@ impl<B: CanBus> Bridge<B> {
                      within {:.1} s)",
                     self.recovery.delay().as_secs_f64()
                 ),
+            )
+        } else if let Some(why) = &self.held {
+            (
+                TrajectoryStatusT::STATE_STOPPED,
+                format!("system stop ({why})"),
+                "stride resume, then a valid trajectory".into(),
             )
         } else if let Some(why) = &s.stopped {
             (TrajectoryStatusT::STATE_STOPPED, why.clone(), REARM.into())

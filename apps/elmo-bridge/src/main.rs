@@ -6,7 +6,11 @@ use stride_node::Launch;
 fn main() -> std::process::ExitCode {
     stride_node::main("stride-elmo-bridge", |l: Launch<Cli, BridgeConfig>| {
         let node = l.start()?;
-        let app = ElmoApp::start(&node, l.cfg)?;
+        let mut cfg = l.cfg;
+        if let Some(bus) = l.cli.bus.clone() {
+            cfg.bus = bus;
+        }
+        let app = ElmoApp::start(&node, cfg)?;
         node.run(app)
     })
 }

@@ -16,11 +16,14 @@ use stride_gait::GaitError;
 use stride_kinematics::archie::{ArchieConfig, Leg};
 use stride_kinematics::hexapod::Hexapod;
 use stride_lcmtypes::stride::{
-    FootstepPlanT, GaitCommandT, ImuT, JointStateT, NodeStatusT, TrajectoryStatusT,
+    FootstepPlanT, GaitCommandT, ImuT, JointStateT, NodeStatusT, PoseStampedT, TrajectoryStatusT,
 };
 use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
 
-use crate::{command_msg, counter_msg, min_jerk, plan_of, trajectory_msg, GaitConfig, Robot};
+use crate::{
+    at_goal, command_msg, counter_msg, feet_after, goal_of, min_jerk, plan_of, request_msg,
+    trajectory_msg, GaitConfig, Goal, Robot,
+};
 
 /// The walking controller.
 ///
@@ -209,6 +212,14 @@ impl Rows {
     }
 }
 
+/// A goal being walked to: the last request's step and time.
+#[derive(Debug, Clone, Copy)]
+struct Pursuit {
+    goal: Goal,
+    step: Option<i64>,
+    sent: f64,
+}
+
 /// What the gait is doing.
 #[derive(Debug, Clone, PartialEq)]
 enum Phase {
@@ -245,6 +256,15 @@ pub struct GaitApp {
     groups: Vec<Group>,
     commands: Receiver<GaitCommandT>,
     _commands_sub: lcm::Subscription,
+    stops: Receiver<GaitCommandT>,
+    _stops_sub: lcm::Subscription,
+    goals: Option<(lcm::Subscription, Receiver<PoseStampedT>)>,
+    /// The goal being walked to.
+    goal: Option<Pursuit>,
+    /// What the status says of the goal ("walking to ...", "... reached").
+    goal_note: String,
+    request_stamper: Stamper,
+    requests: i64,
     imu: Option<(lcm::Subscription, Receiver<ImuT>)>,
     attitude: Option<[f64; 2]>,
     /// Walker time 0: the node's start, on the monotonic and the system clock.
@@ -359,6 +379,11 @@ impl GaitApp {
             })
             .collect::<anyhow::Result<Vec<_>>>()?;
         let (csub, crx) = node.queue::<GaitCommandT>(&cfg.command_channel)?;
+        let (ssub, srx) = node.queue::<GaitCommandT>(&cfg.stop_channel)?;
+        let goals = match (&cfg.goal, cfg.robot) {
+            (Some(g), Robot::Archie) => Some(node.queue::<PoseStampedT>(&g.channel)?),
+            _ => None,
+        };
         let imu = match &cfg.imu_channel {
             Some(c) => Some(node.queue::<ImuT>(c)?),
             None => None,
@@ -387,6 +412,13 @@ impl GaitApp {
             groups,
             commands: crx,
             _commands_sub: csub,
+            stops: srx,
+            _stops_sub: ssub,
+            goals,
+            goal: None,
+            goal_note: String::new(),
+            request_stamper: Stamper::new("world"),
+            requests: 0,
             imu,
             attitude: None,
             t0: Instant::now(),
@@ -397,6 +429,24 @@ impl GaitApp {
             quiet: true,
         })
     }
+}
+
+/// The rows' period, s (the gait's joint rows are every other 5 ms sample).
+const ROW_PERIOD: f64 = 0.01;
+
+/// When a change decided at `t` is to take over, as the walker's `now` (it switches
+/// `switch_ahead` later): at the end of what was sent to the trajectory bridges while a stream
+/// runs (`stream_end`), so that the new pattern's rows are appended to the rows queued there,
+/// with no clock between them; standing, on a row of the current pattern.
+fn on_grid(walker: &Walker, t: f64, switch_ahead: f64, stream_end: Option<f64>) -> f64 {
+    if let Some(end) = stream_end {
+        return end - switch_ahead + 1e-7;
+    }
+    let start = walker.pattern().timeline.start;
+    let rows = ((t + switch_ahead - start) / ROW_PERIOD - 1e-6)
+        .ceil()
+        .max(0.0);
+    (start + rows * ROW_PERIOD - switch_ahead + 1e-7).max(t)
 }
 
 /// The rows of standing still (Archie's walker's pattern, the hexapod's stance), held.
@@ -457,15 +507,46 @@ impl GaitApp {
         self.status_changed = true;
     }
 
-    /// Plays the walker's new pattern: its joints from its start.
-    fn adopt(&mut self, plan: JointPlan) {
+    /// Plays the walker's new pattern at walker time `t`. One that starts ahead (a plan
+    /// taken, a stand: the walker switches beyond what was sent) replaces from its start. One
+    /// that starts in the past kept what was sent (a plan refused with nothing to change):
+    /// the stream goes on from the last row sent, or, standing quiet, stays quiet.
+    fn adopt(&mut self, plan: JointPlan, t: f64) {
         let stab = self.stabiliser_now();
+        let stream_end = self.stream_end();
         if let Body::Archie { walker, joints, .. } = &mut self.body {
-            self.rows = Rows::of_plan(walker.pattern().timeline.start, &plan, stab);
+            let rows = Rows::of_plan(walker.pattern().timeline.start, &plan, stab);
+            if stream_end.is_some_and(|e| (rows.times[0] - e).abs() < 1e-6) {
+                // It takes over where the stream sent so far ends: appended there.
+                self.sent = Some(0);
+            } else if rows.times[0] > t {
+                self.sent = None;
+                self.quiet = false;
+            } else {
+                let last_sent = self.sent.map(|i| self.rows.times[i]);
+                self.sent = last_sent.and_then(|ts| {
+                    let i = rows
+                        .times
+                        .partition_point(|&x| x <= ts + 1e-9)
+                        .checked_sub(1)?;
+                    ((rows.times[i] - ts).abs() < 1e-6).then_some(i)
+                });
+                if self.sent.is_none() && !self.quiet {
+                    tracing::warn!("a pattern that starts in the past and does not continue what was sent: not streamed");
+                    self.quiet = true;
+                }
+            }
+            self.rows = rows;
             **joints = plan;
-            self.sent = None;
-            self.quiet = false;
         }
+    }
+
+    /// The time of the last row sent to the trajectory bridges, while a stream runs.
+    fn stream_end(&self) -> Option<f64> {
+        if self.quiet {
+            return None;
+        }
+        self.sent.map(|i| self.rows.times[i])
     }
 
     fn stabiliser_now(&self) -> [f64; 2] {
@@ -486,13 +567,19 @@ impl GaitApp {
     }
 
     fn take_commands(&mut self, node: &Node, t: f64) {
-        while let Ok(c) = self.commands.try_recv() {
+        let commands: Vec<GaitCommandT> = self
+            .commands
+            .try_iter()
+            .chain(self.stops.try_iter())
+            .collect();
+        for c in commands {
+            let stream_end = self.stream_end();
             match (c.command, &mut self.body) {
                 (GaitCommandT::COMMAND_STOP, Body::Archie { walker, legs, .. }) => {
                     tracing::info!("stop: {}", c.reason);
-                    walker.stop(t);
+                    walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
                     match legs.joints(walker.pattern()) {
-                        Ok(j) => self.adopt(j),
+                        Ok(j) => self.adopt(j, t),
                         Err(e) => self.fault(node, format!("stopping: {e}")),
                     }
                     self.set_status(
@@ -700,6 +787,7 @@ impl GaitApp {
 
     /// Takes plans and keeps the walk going (Archie).
     fn walk(&mut self, node: &Node, t: f64, now: Instant) {
+        let stream_end = self.stream_end();
         let Body::Archie {
             legs,
             walker,
@@ -727,7 +815,12 @@ impl GaitApp {
                     continue;
                 }
             };
-            match walker.on_plan(&plan, t, &reach, &check) {
+            match walker.on_plan(
+                &plan,
+                on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end),
+                &reach,
+                &check,
+            ) {
                 Verdict::Taken(first) => {
                     tracing::debug!("plan for step {} taken: step {first} next", plan.echo);
                     adopt = cache.borrow_mut().take();
@@ -746,7 +839,10 @@ impl GaitApp {
                 }
             }
         }
-        if walker.tick(t, &check) {
+        if walker.tick(
+            on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end),
+            &check,
+        ) {
             if let Some(j) = cache.borrow_mut().take() {
                 adopt = Some(j);
             } else if let Ok(j) = legs.joints(walker.pattern()) {
@@ -763,19 +859,83 @@ impl GaitApp {
             self.status_changed = true;
         }
         if let Some(j) = adopt {
-            self.adopt(j);
+            self.adopt(j, t);
         }
         if !stopped {
+            let note = self.goal_note.clone();
             self.set_status(
                 if standing {
                     TrajectoryStatusT::STATE_IDLE
                 } else {
                     TrajectoryStatusT::STATE_MOVING
                 },
-                "",
+                note,
             );
         }
         self.track(node, t, now);
+    }
+
+    /// Takes goals, and asks the planner for the way there at every step (Archie).
+    fn pursue(&mut self, node: &Node, t: f64) -> anyhow::Result<()> {
+        let (Some((_, rx)), Some(cfg)) = (&self.goals, self.cfg.goal.clone()) else {
+            return Ok(());
+        };
+        let cfg = &cfg;
+        let goals: Vec<PoseStampedT> = rx.try_iter().collect();
+        for m in goals {
+            match goal_of(&m) {
+                Some(g) => {
+                    tracing::info!("goal ({:.3}, {:.3})", g.x, g.y);
+                    self.goal_note = format!("walking to ({:.3}, {:.3})", g.x, g.y);
+                    self.goal = Some(Pursuit {
+                        goal: g,
+                        step: None,
+                        sent: f64::NEG_INFINITY,
+                    });
+                }
+                None => self.refused("a goal that is not made of finite numbers".into()),
+            }
+        }
+        let Body::Archie { walker, .. } = &self.body else {
+            return Ok(());
+        };
+        let Some(p) = &mut self.goal else {
+            return Ok(());
+        };
+        if walker.is_stopped() || self.phase != Phase::Ready {
+            return Ok(());
+        }
+        let counter = walker.counter(t);
+        let (feet, next) = feet_after(&walker.pattern().timeline, counter.number);
+        if at_goal(&feet, &p.goal, cfg) {
+            // There once the step under way lands: no more requests; the walk's last plan
+            // ends it standing (its remaining steps in place are the planner's padding).
+            if !walker.standing(t) {
+                return Ok(());
+            }
+            tracing::info!("goal ({:.3}, {:.3}) reached", p.goal.x, p.goal.y);
+            self.goal_note = format!("goal ({:.3}, {:.3}) reached", p.goal.x, p.goal.y);
+            self.status.reason = self.goal_note.clone();
+            self.status_changed = true;
+            self.goal = None;
+            return Ok(());
+        }
+        if p.step != Some(counter.number) || t - p.sent >= cfg.resend {
+            p.step = Some(counter.number);
+            p.sent = t;
+            self.requests += 1;
+            let m = request_msg(
+                self.request_stamper.stamp(),
+                self.requests,
+                counter.number,
+                feet,
+                next,
+                &p.goal,
+                cfg,
+            );
+            node.publisher().publish(&cfg.request_channel, &m)?;
+        }
+        Ok(())
     }
 
     /// A joint further from the pattern than the tolerance stops the walk.
@@ -796,10 +956,11 @@ impl GaitApp {
                     "{joint} is {d:.3} rad from where the pattern has it (at most {}): stopped",
                     self.cfg.track_tolerance
                 );
+                let stream_end = self.stream_end();
                 if let Body::Archie { walker, legs, .. } = &mut self.body {
-                    walker.stop(t);
+                    walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
                     if let Ok(j) = legs.joints(walker.pattern()) {
-                        self.adopt(j);
+                        self.adopt(j, t);
                     }
                 }
                 node.set_health(NodeStatusT::STATE_DEGRADED, why.clone());
@@ -880,6 +1041,7 @@ impl Tick for GaitApp {
             Phase::Ready => self.walk(node, t, now),
             Phase::Fault(_) => {}
         }
+        self.pursue(node, t)?;
         self.stream(node, t)?;
         self.set_points(node, t)?;
         if self.counter_period.due(now) {
@@ -900,9 +1062,50 @@ impl Tick for GaitApp {
         Ok(self.period.next(now))
     }
 
-    fn stop(self, _node: &Node) -> anyhow::Result<()> {
-        // The bridges stop their joints on their own when the stream ends (the Elmo bridge
-        // decelerates a chunk that ends in motion; the set-point bridges hold).
+    fn stop(mut self, node: &Node) -> anyhow::Result<()> {
+        // A walk under way ends in a stand first (at most 10 s): the feet together, the COM
+        // at rest, every row of it sent. Then the bridges hold the joints where the stream
+        // ends (the Elmo bridge decelerates a chunk that ends in motion; the set-point bridges
+        // hold).
+        let t = self.time(Instant::now());
+        let stream_end = self.stream_end();
+        let walking = match &mut self.body {
+            Body::Archie { walker, .. } if self.phase == Phase::Ready && !walker.standing(t) => {
+                walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
+                true
+            }
+            _ => false,
+        };
+        if !walking {
+            return Ok(());
+        }
+        if let Body::Archie { walker, legs, .. } = &self.body {
+            match legs.joints(walker.pattern()) {
+                Ok(j) => self.adopt(j, t),
+                Err(e) => {
+                    tracing::error!("no stand from here: {e}");
+                    return Ok(());
+                }
+            }
+        }
+        tracing::info!("shutting down: coming to a stand");
+        self.goal = None;
+        let until = Instant::now() + Duration::from_secs(10);
+        loop {
+            let now = Instant::now();
+            let t = self.time(now);
+            let standing = match &self.body {
+                Body::Archie { walker, .. } => walker.standing(t) && t >= self.rows.end(),
+                Body::Hexapod { .. } => true,
+            };
+            if standing || now >= until || self.phase != Phase::Ready {
+                break;
+            }
+            let next = self.tick(node, now)?;
+            let _ = node
+                .lcm()
+                .handle_timeout(next.saturating_duration_since(Instant::now()));
+        }
         Ok(())
     }
 }

@@ -19,7 +19,8 @@ use stride_gait::timeline::{Footstep, Side, TimingConfig};
 use stride_gait::walker::{Plan, StepCounter, WalkerConfig};
 use stride_kinematics::archie::ArchieConfig;
 use stride_lcmtypes::stride::{
-    FootT, FootstepPlanT, HeaderT, ImuT, JointCommandT, JointTrajectoryT, StepCounterT,
+    FootT, FootstepPlanRequestT, FootstepPlanT, HeaderT, ImuT, JointCommandT, JointTrajectoryT,
+    PoseStampedT, StepCounterT,
 };
 
 /// Which robot the gait drives.
@@ -183,6 +184,13 @@ pub struct GaitConfig {
     pub status_channel: String,
     /// The IMU on the pelvis (stride.imu_t), for the stabiliser.
     pub imu_channel: Option<String>,
+    /// The system stop (stride.gait_command_t STOP and RESUME from the launcher or `stride
+    /// stop`), obeyed like a command.
+    #[serde(default = "stop_channel")]
+    pub stop_channel: String,
+    /// Walking to a goal (Archie): goals in, plan requests to the planner out.
+    #[serde(default)]
+    pub goal: Option<GoalConfig>,
     /// The control loop's rate, Hz.
     #[serde(default = "rate")]
     pub rate_hz: f64,
@@ -240,6 +248,9 @@ fn plan_channel() -> String {
 }
 fn command_channel() -> String {
     "GAIT_COMMAND".into()
+}
+fn stop_channel() -> String {
+    "STRIDE_STOP".into()
 }
 fn step_counter_channel() -> String {
     "STEP_COUNTER".into()
@@ -317,6 +328,9 @@ impl GaitConfig {
             ));
         }
         self.pattern.timing.check().map_err(|e| e.to_string())?;
+        if let Some(g) = &self.goal {
+            g.check()?;
+        }
         Ok(())
     }
 
@@ -590,4 +604,197 @@ mod tests {
             t.last().unwrap()
         );
     }
+}
+
+/// Walking to a goal: the gait asks the planner for the steps from where its feet will stand
+/// when the step under way lands, at every step (the planner's answer echoes the step), and
+/// again every `resend` s while no plan is taken (a planner restarted, a request lost), until
+/// it stands within `tolerance` of the goal.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GoalConfig {
+    /// Goals (stride.pose_stamped_t: position and heading, world frame).
+    #[serde(default = "goal_channel")]
+    pub channel: String,
+    /// Plan requests (stride.footstep_plan_request_t).
+    #[serde(default = "request_channel")]
+    pub request_channel: String,
+    /// Which planner: "archie", "kaist" or "lola".
+    #[serde(default = "archie_planner")]
+    pub planner: String,
+    /// The thesis's planner instead of the improved one.
+    #[serde(default)]
+    pub faithful: bool,
+    /// Standing this close to the goal (the feet's centre) is there, m; the planner is asked
+    /// for half of it.
+    #[serde(default = "goal_tolerance")]
+    pub tolerance: f64,
+    /// The heading's tolerance, rad (π: any heading).
+    #[serde(default = "yaw_tolerance")]
+    pub yaw_tolerance: f64,
+    /// The planner's budget, ms (0: its own).
+    #[serde(default)]
+    pub budget_ms: u64,
+    /// A request is sent again after this long without a plan taken, s.
+    #[serde(default = "resend")]
+    pub resend: f64,
+    /// Extra planner parameters (e.g. max_step, the walker's max_length).
+    #[serde(default)]
+    pub params: BTreeMap<String, f64>,
+}
+
+fn goal_channel() -> String {
+    "WALK_GOAL".into()
+}
+fn request_channel() -> String {
+    "FOOTSTEP_PLAN_REQUEST".into()
+}
+fn archie_planner() -> String {
+    "archie".into()
+}
+fn goal_tolerance() -> f64 {
+    0.15
+}
+fn yaw_tolerance() -> f64 {
+    std::f64::consts::PI
+}
+fn resend() -> f64 {
+    1.0
+}
+
+impl GoalConfig {
+    /// Checks the planner's name and the numbers.
+    pub fn check(&self) -> Result<(), String> {
+        self.planner_id()?;
+        let ok = |v: f64| v.is_finite() && v > 0.0;
+        if !(ok(self.tolerance) && ok(self.yaw_tolerance) && ok(self.resend)) {
+            return Err("goal: tolerance, yaw_tolerance and resend must be positive".into());
+        }
+        if let Some((k, v)) = self.params.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(format!("goal.params.{k} = {v} is not a number"));
+        }
+        Ok(())
+    }
+
+    /// The request's planner constant.
+    pub fn planner_id(&self) -> Result<i8, String> {
+        match self.planner.as_str() {
+            "archie" => Ok(FootstepPlanRequestT::PLANNER_ARCHIE),
+            "kaist" => Ok(FootstepPlanRequestT::PLANNER_KAIST),
+            "lola" => Ok(FootstepPlanRequestT::PLANNER_LOLA),
+            other => Err(format!(
+                "goal.planner {other:?}: one of \"archie\", \"kaist\", \"lola\""
+            )),
+        }
+    }
+}
+
+/// A goal to walk to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Goal {
+    /// Position, m.
+    pub x: f64,
+    /// Position, m.
+    pub y: f64,
+    /// Heading, rad.
+    pub yaw: f64,
+    /// Any heading will do.
+    pub any_heading: bool,
+}
+
+/// A goal message as a goal (None for one not made of finite numbers). A child frame of
+/// "goal_any_heading" leaves the heading free.
+pub fn goal_of(m: &PoseStampedT) -> Option<Goal> {
+    let [w, x, y, z] = m.pose.orientation;
+    let yaw = (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z));
+    let g = Goal {
+        x: m.pose.position[0],
+        y: m.pose.position[1],
+        yaw,
+        any_heading: m.child_frame == "goal_any_heading",
+    };
+    (g.x.is_finite() && g.y.is_finite() && g.yaw.is_finite()).then_some(g)
+}
+
+/// Where the feet stand once step `number` (and every step before it) of `timeline` has
+/// landed, and the side that swings next.
+pub fn feet_after(timeline: &stride_gait::timeline::Timeline, number: i64) -> ([Place4; 2], Side) {
+    let mut feet = timeline.feet_start;
+    let mut next = Side::Left;
+    for s in timeline
+        .steps
+        .iter()
+        .filter(|s| s.footstep.number <= number)
+    {
+        feet[s.footstep.side.index()] = s.footstep.place;
+        next = s.footstep.side.other();
+    }
+    (feet, next)
+}
+
+/// A foot's place: x, y, z (m), heading (rad).
+pub type Place4 = [f64; 4];
+
+/// A plan request from the feet `feet` (left, right), `next` to swing first, during step
+/// `step`, to `goal`.
+pub fn request_msg(
+    header: HeaderT,
+    id: i64,
+    step: i64,
+    feet: [Place4; 2],
+    next: Side,
+    goal: &Goal,
+    cfg: &GoalConfig,
+) -> FootstepPlanRequestT {
+    let foot = |side: Side| {
+        let p = feet[side.index()];
+        FootT {
+            side: match side {
+                Side::Left => FootT::SIDE_LEFT,
+                Side::Right => FootT::SIDE_RIGHT,
+            },
+            x: p[0],
+            y: p[1],
+            z: p[2],
+            yaw: p[3],
+        }
+    };
+    FootstepPlanRequestT {
+        header,
+        request_id: id,
+        step_number: step,
+        stance: foot(next.other()),
+        swing: foot(next),
+        goal_x: goal.x,
+        goal_y: goal.y,
+        goal_yaw: goal.yaw,
+        goal_tolerance: cfg.tolerance / 2.0,
+        goal_yaw_tolerance: if goal.any_heading {
+            std::f64::consts::PI
+        } else {
+            cfg.yaw_tolerance
+        },
+        planner: cfg
+            .planner_id()
+            .unwrap_or(FootstepPlanRequestT::PLANNER_ARCHIE),
+        faithful: cfg.faithful,
+        max_expansions: 0,
+        max_time_us: cfg.budget_ms as i64 * 1000,
+        num_params: cfg.params.len() as i32,
+        param_names: cfg.params.keys().cloned().collect(),
+        param_values: cfg.params.values().copied().collect(),
+    }
+}
+
+/// True when the feet stand within the goal's tolerances.
+pub fn at_goal(feet: &[Place4; 2], goal: &Goal, cfg: &GoalConfig) -> bool {
+    let (x, y) = (
+        (feet[0][0] + feet[1][0]) / 2.0,
+        (feet[0][1] + feet[1][1]) / 2.0,
+    );
+    let d = (x - goal.x).hypot(y - goal.y);
+    let yaw = (feet[0][3] + feet[1][3]) / 2.0;
+    let dyaw = (yaw - goal.yaw + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+        - std::f64::consts::PI;
+    d <= cfg.tolerance && (goal.any_heading || dyaw.abs() <= cfg.yaw_tolerance)
 }

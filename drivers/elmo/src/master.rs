@@ -482,6 +482,14 @@ impl Track {
     }
 }
 
+/// The wall clock's offset from plan time (µs) from readings (plan time before, wall clock,
+/// plan time after): the tightest reading's, if it is tight (within 200 µs); None when every
+/// reading was interrupted.
+pub(crate) fn clock_offset(samples: &[(i64, i64, i64)]) -> Option<i64> {
+    let &(a, w, b) = samples.iter().min_by_key(|(a, _, b)| b - a)?;
+    (b - a <= 200).then(|| w - (a + b) / 2)
+}
+
 /// The system clock, µs since the Unix epoch.
 pub(crate) fn wall_us() -> i64 {
     std::time::SystemTime::now()
@@ -568,8 +576,17 @@ impl<B: CanBus> Master<B> {
                 });
             }
         }
-        let now = Instant::now();
-        let wall_epoch = wall_us();
+        // Plan time 0 and the wall clock then, read with nothing between them (a reading the
+        // scheduler interrupted is taken again).
+        let (now, wall_epoch) = (0..10)
+            .map(|_| {
+                let a = Instant::now();
+                let w = wall_us();
+                (a, w, a.elapsed())
+            })
+            .min_by_key(|s| s.2)
+            .map(|(a, w, _)| (a, w))
+            .expect("ten readings");
         Ok(Master {
             bus,
             track: Track {
@@ -596,13 +613,26 @@ impl<B: CanBus> Master<B> {
     /// Plan time of a wall-clock time `utime` (µs since the Unix epoch). One fixed offset
     /// maps every start, not the clocks' difference read anew each time (which moves by the
     /// time between the two readings and would shift a replacing trajectory against the
-    /// rows it joins); the offset is read again only when the wall clock was stepped or has
-    /// drifted by more than a millisecond from it.
+    /// rows it joins); the offset is read again when the wall clock was stepped (50 ms), or
+    /// has drifted by more than a millisecond from it while nothing is queued.
     pub(crate) fn plan_us_of_wall(&mut self, utime: i64) -> i64 {
-        // Both clocks read back to back.
-        let fresh = wall_us() - self.us(Instant::now());
-        if (fresh - self.wall_epoch).abs() > 1000 {
-            self.wall_epoch = fresh;
+        // The wall clock between two readings of the monotonic one, three times: a reading
+        // the scheduler interrupted is not taken for a step of the clock.
+        let samples: Vec<(i64, i64, i64)> = (0..3)
+            .map(|_| {
+                let a = self.us(Instant::now());
+                let w = wall_us();
+                (a, w, self.us(Instant::now()))
+            })
+            .collect();
+        if let Some(fresh) = clock_offset(&samples) {
+            let drift = (fresh - self.wall_epoch).abs();
+            // While motion is queued the offset moves only for a step of the clock: moved
+            // by a drift of a few milliseconds, a replacing trajectory would land that far
+            // off the rows it joins.
+            if drift > 50_000 || (drift > 1000 && self.idle()) {
+                self.wall_epoch = fresh;
+            }
         }
         utime.saturating_sub(self.wall_epoch)
     }
@@ -769,5 +799,29 @@ impl<B: CanBus> Master<B> {
             d.first().copied().unwrap_or(0),
             d.get(1).copied().unwrap_or(0),
         ]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::clock_offset;
+
+    #[test]
+    fn a_clock_reading_the_scheduler_interrupted_does_not_move_the_start_times() {
+        // Wall clock = plan time + 1 000 000 µs. The first reading was interrupted for 3 ms
+        // between the two clocks (it alone would say the offset moved by 1.5 ms); the
+        // others are tight: the offset is the tight readings'.
+        let samples = [
+            (100, 1_000_100 + 3_000, 3_100),
+            (3_200, 1_003_210, 3_220),
+            (3_300, 1_003_305, 3_310),
+        ];
+        let off = clock_offset(&samples).unwrap();
+        assert!((off - 1_000_000).abs() <= 10, "{off}");
+        // Every reading interrupted: no new offset at all.
+        assert_eq!(
+            clock_offset(&[(0, 1_002_000, 4_000), (5_000, 1_007_000, 9_000)]),
+            None
+        );
     }
 }

@@ -237,7 +237,8 @@ fn search(req: &Request, world: &Scene, budget: Duration, cancel: &Cancel) -> Pl
             } else {
                 let mut p = archie::plan_exact(start, goal, &circles, &params);
                 if p.status == Status::Ok {
-                    p.steps = steps::improved(&p.path, req.start.yaw, &sp);
+                    let swing_left = req.feet.map(|(_, swing)| swing.left);
+                    p.steps = steps::improved_from(&p.path, req.start.yaw, &sp, swing_left);
                 }
                 p
             }

@@ -314,23 +314,30 @@ impl ArchieGait {
         let mut pos: Vec<[Q; 2]> = Vec::with_capacity(ks.len());
         let mut pelvises = Vec::with_capacity(ks.len());
         let mut times = Vec::with_capacity(ks.len());
-        // The offsets found for the last three rows.
-        let mut seen = [offset; 3];
+        // The offsets found for the last rows, newest first (at most three).
+        let mut seen: Vec<V3> = Vec::with_capacity(4);
         for &k in &ks {
             let s = &pat.samples[k];
             let feet = [s.feet[0][0], s.feet[1][0]];
             let (com, yaw) = self.com_at(pat, k);
             // The offset goes on as it went over the last three rows (a parabola through
-            // them).
-            seen = [offset, seen[0], seen[1]];
-            for d in 0..3 {
-                offset[d] = 3.0 * seen[0][d] - 3.0 * seen[1][d] + seen[2][d];
+            // them); before there are three, it is the last one found (a pattern that starts
+            // mid-walk starts from an offset unlike the standing one: extrapolating from that
+            // would throw the first guess far off).
+            if let [a, b, c] = seen[..] {
+                for d in 0..3 {
+                    offset[d] = 3.0 * a[d] - 3.0 * b[d] + c[d];
+                }
+            } else if let Some(a) = seen.first() {
+                offset = *a;
             }
             let (pelvis, q) = self
                 .place(com, yaw, &feet, &near, &mut offset)
                 .map_err(|e| {
                     GaitError::Plan(format!("at {:.3} s: {e}", s.t - pat.timeline.start))
                 })?;
+            seen.insert(0, offset);
+            seen.truncate(3);
             near = q;
             pos.push(q);
             pelvises.push(pelvis);

@@ -226,6 +226,8 @@ pub struct UnderWay {
     pub land: f64,
     /// Where its double support moves the ZMP reference from.
     pub zmp_from: P2,
+    /// Where its foot lifted from.
+    pub from: Place,
 }
 
 impl Start {
@@ -271,6 +273,7 @@ impl Pattern {
                 } else {
                     tl.zmp_point(&tl.steps[i - 1].support)
                 },
+                from: st.from,
             }
         });
         // The jerk the pattern applies from this sample on (at its end, the last one).
@@ -413,10 +416,30 @@ impl Generator {
         };
         let k = target.side.index();
         let over = start.feet[k][0][2].max(target.place[2]) + target.swing_height.max(0.0);
-        let path = if start.t > uw.lift {
-            // In the air: on from where the foot is, landing when it was to.
+        // In the air with its target and height unchanged (a replanning planner's plans keep
+        // the step under way): the very path it is on, from its lift-off.
+        let same = start.t > uw.lift
+            && target.place == uw.footstep.place
+            && target.swing_height == uw.footstep.swing_height;
+        let path = if same {
+            let over = uw.from[2].max(target.place[2]) + target.swing_height.max(0.0);
+            SwingPath::new(
+                uw.from,
+                target.place,
+                over,
+                uw.land - uw.lift,
+                &self.cfg.swing,
+            )?
+        } else if start.t > uw.lift {
+            // In the air, retargeted: on from where the foot is, landing when it was to,
+            // rising above where it is by no more of the clearance than the swing has time
+            // left for (a foot about to land is not lifted again).
             let left = (uw.land - start.t).max(self.cfg.preview.period);
-            SwingPath::from_state(start.feet[k], target.place, over, left, &self.cfg.swing)?
+            let share = (left / (uw.land - uw.lift)).clamp(0.0, 1.0);
+            let mut swing = self.cfg.swing;
+            swing.clearance *= share;
+            let over = over - target.swing_height.max(0.0) * (1.0 - share);
+            SwingPath::from_state(start.feet[k], target.place, over, left, &swing)?
         } else {
             SwingPath::new(
                 start.feet[k][0],
@@ -429,11 +452,9 @@ impl Generator {
         let support = feet[target.side.other().index()];
         let first = Step {
             footstep: target,
-            from: if start.t > uw.lift {
-                uw.footstep.place
-            } else {
-                start.feet[k][0]
-            },
+            // Where its path starts: the lift-off place of the path kept, else where the
+            // foot is.
+            from: if same { uw.from } else { start.feet[k][0] },
             support,
             start: uw.start,
             lift: uw.lift.max(uw.start),
@@ -441,7 +462,7 @@ impl Generator {
             swing: path,
         };
         // A swing retargeted in the air: its path starts now.
-        let first = if start.t > uw.lift {
+        let first = if start.t > uw.lift && !same {
             Step {
                 lift: start.t,
                 ..first

@@ -44,18 +44,20 @@ pub const FOOT: (f64, f64) = (0.225, 0.1);
 /// One walk parameter: COM advance, lateral offset, heading.
 type Walk = (f64, f64, f64);
 
-/// The feet of a walk-parameter sequence from `hip0` (odd indices are left feet).
-fn feet(hip0: V2, s: &[Walk]) -> Vec<Foot> {
+/// The feet of a walk-parameter sequence from `hip0`: odd indices are left feet when
+/// `odd_left`, right feet otherwise.
+fn feet(hip0: V2, s: &[Walk], odd_left: bool) -> Vec<Foot> {
     let mut hip = hip0;
     let mut out = Vec::new();
     for (jj, &(sx, sy, th)) in s.iter().enumerate().skip(1) {
         hip = hip + v2(th.cos(), th.sin()) * sx;
-        let sign = if jj % 2 == 1 { -1.0 } else { 1.0 }; // (-1)^jj
+        let left = (jj % 2 == 1) == odd_left;
+        let sign = if left { -1.0 } else { 1.0 }; // (-1)^jj for odd left feet
         out.push(Foot {
             z: 0.0,
             p: hip + v2(sign * th.sin() * sy, -sign * th.cos() * sy),
             yaw: th,
-            left: jj % 2 == 1,
+            left,
         });
     }
     out
@@ -98,25 +100,42 @@ pub fn faithful(waypoints: &[V2], dirs: &[f64], p: &StepParams, first_foot_bug: 
         }
         s.push((0.0, my, th));
     }
-    out.extend(feet(w0, &s));
+    out.extend(feet(w0, &s, true));
     out
 }
 
 /// Improved footsteps along `waypoints`, starting with the feet side by side at `start_yaw`
 /// (right foot first in the list, then the steps).
 pub fn improved(waypoints: &[V2], start_yaw: f64, p: &StepParams) -> Vec<Foot> {
+    improved_from(waypoints, start_yaw, p, None)
+}
+
+/// [`improved`], or, with `swing_left` given (the feet known, walking on), the stance foot
+/// first in the list, then the steps from the swing foot's on: the walk goes on with the
+/// foot that swings next instead of first setting it beside the other.
+pub fn improved_from(
+    waypoints: &[V2],
+    start_yaw: f64,
+    p: &StepParams,
+    swing_left: Option<bool>,
+) -> Vec<Foot> {
     let my = p.half_stance;
     let w0 = waypoints[0];
+    let stance_left = swing_left == Some(false);
+    let side = if stance_left { -1.0 } else { 1.0 };
     let mut out = vec![Foot {
         z: 0.0,
-        p: w0 + v2(start_yaw.sin() * my, -start_yaw.cos() * my),
+        p: w0 + v2(side * start_yaw.sin() * my, -side * start_yaw.cos() * my),
         yaw: start_yaw,
-        left: false,
+        left: stance_left,
     }];
-    let mut s: Vec<Walk> = vec![(0.0, 0.0, start_yaw), (0.0, my, start_yaw)];
+    let (mut s, odd_left): (Vec<Walk>, bool) = match swing_left {
+        None => (vec![(0.0, 0.0, start_yaw), (0.0, my, start_yaw)], true),
+        Some(l) => (vec![(0.0, 0.0, start_yaw)], l),
+    };
     let mut heading = start_yaw;
-    // The foot that steps next: odd indices of s are left feet.
-    let left_next = |s: &Vec<Walk>| s.len() % 2 == 1;
+    // The foot that steps next: odd indices of s are left feet when `odd_left`.
+    let left_next = |s: &Vec<Walk>| (s.len() % 2 == 1) == odd_left;
     for ii in 0..waypoints.len().saturating_sub(1) {
         let seg = waypoints[ii + 1] - waypoints[ii];
         let d = seg.norm();
@@ -149,7 +168,7 @@ pub fn improved(waypoints: &[V2], start_yaw: f64, p: &StepParams) -> Vec<Foot> {
     }
     // Feet together at the end.
     s.push((0.0, my, heading));
-    out.extend(feet(w0, &s));
+    out.extend(feet(w0, &s, odd_left));
     out
 }
 
@@ -237,5 +256,30 @@ mod tests {
         for k in 2..hips.len() {
             assert!(hips[k].dist(hips[k - 2]) <= 2.0 * p.max_step + 1e-9);
         }
+    }
+
+    #[test]
+    fn a_walk_replanned_goes_on_with_the_swing_foot_instead_of_stepping_in_place() {
+        // Replanned at every step, a plan whose first step set the swing foot beside the
+        // other (or stepped the other foot first) would have the robot step in place for
+        // ever: with the feet known, the list is the stance foot, then the swing foot's step
+        // forward, alternating from there, whichever foot swings.
+        let p = StepParams::default();
+        let path = [v2(0.0, 0.0), v2(1.0, 0.0)];
+        for swing_left in [true, false] {
+            let f = improved_from(&path, 0.0, &p, Some(swing_left));
+            assert_eq!(f[0].left, !swing_left, "the stance foot first");
+            assert_eq!(f[1].left, swing_left, "then the swing foot");
+            assert!(f[1].p.x > 0.2, "its step goes forward: {:?}", f[1]);
+            for w in f.windows(2) {
+                assert_ne!(w[0].left, w[1].left);
+            }
+            let (a, b) = (f[f.len() - 2], f[f.len() - 1]);
+            assert!(((a.p + b.p) * 0.5).dist(path[1]) < 1e-9);
+        }
+        // Without the feet: both feet listed where they stand, the right foot first.
+        let f = improved_from(&path, 0.0, &p, None);
+        assert_eq!(f, improved(&path, 0.0, &p));
+        assert!(!f[0].left && f[1].left && f[1].p.x.abs() < 1e-12);
     }
 }

@@ -1,0 +1,212 @@
+//! `stride walk`: send a goal, follow the walk to its end, and judge it: the goal reached (by
+//! the gait, and by the simulated world's true pose when there is one), the steps, the
+//! smallest clearance and ZMP margin, collisions and falls, the joints' tracking error
+//! (commanded rows against the drives' measured positions) and each app's CPU.
+
+use std::collections::BTreeMap;
+
+use stride_lcmtypes::stride::{
+    JointStateT, JointTrajectoryT, LaunchStatusT, PoseStampedT, SimReportT, StepCounterT,
+    TrajectoryStatusT,
+};
+
+/// One joint's commanded positions in time (µs since the epoch, rad).
+#[derive(Debug, Default, Clone)]
+struct Rows {
+    rows: Vec<(i64, f64)>,
+}
+
+/// Commanded rows of every joint, from the trajectories on the bus, and their comparison with
+/// the measured positions.
+#[derive(Debug, Default)]
+pub struct Tracking {
+    joints: BTreeMap<String, Rows>,
+    /// Largest error, rad, and the joint.
+    pub max: (f64, String),
+    sum_sq: f64,
+    /// Measurements compared.
+    pub samples: u64,
+}
+
+impl Tracking {
+    /// Takes a trajectory: its rows replace what was commanded from its start on; an appended
+    /// chunk continues from the last row.
+    pub fn trajectory(&mut self, m: &JointTrajectoryT, received_utime: i64) {
+        for (j, name) in m.joint_names.iter().enumerate() {
+            let rows = self.joints.entry(name.clone()).or_default();
+            let start = if m.queue == JointTrajectoryT::QUEUE_APPEND {
+                match rows.rows.last() {
+                    Some(&(t, _)) => t,
+                    None => continue,
+                }
+            } else if m.start_utime == 0 {
+                received_utime
+            } else {
+                m.start_utime
+            };
+            let first = start + (m.time_from_start.first().copied().unwrap_or(0.0) * 1e6) as i64;
+            rows.rows.retain(|&(t, _)| t < first);
+            for (k, dt) in m.time_from_start.iter().enumerate() {
+                if let Some(p) = m.positions.get(k).and_then(|r| r.get(j)) {
+                    rows.rows.push((start + (dt * 1e6).round() as i64, *p));
+                }
+            }
+        }
+    }
+
+    /// Compares a measurement with what was commanded at its time (linear between rows; not
+    /// compared outside the rows).
+    pub fn measured(&mut self, m: &JointStateT) {
+        for (name, p) in m.names.iter().zip(&m.positions) {
+            let Some(rows) = self.joints.get(name) else {
+                continue;
+            };
+            let t = m.header.utime;
+            let i = rows.rows.partition_point(|&(rt, _)| rt <= t);
+            if i == 0 || i >= rows.rows.len() {
+                continue;
+            }
+            let ((t0, p0), (t1, p1)) = (rows.rows[i - 1], rows.rows[i]);
+            let s = if t1 > t0 {
+                (t - t0) as f64 / (t1 - t0) as f64
+            } else {
+                0.0
+            };
+            let cmd = p0 + s * (p1 - p0);
+            let e = (p - cmd).abs();
+            if !e.is_finite() {
+                continue;
+            }
+            if e > self.max.0 {
+                self.max = (e, name.clone());
+            }
+            self.sum_sq += e * e;
+            self.samples += 1;
+        }
+    }
+
+    /// The root mean square error, rad.
+    pub fn rms(&self) -> f64 {
+        if self.samples == 0 {
+            f64::NAN
+        } else {
+            (self.sum_sq / self.samples as f64).sqrt()
+        }
+    }
+}
+
+/// What was seen of a walk.
+#[derive(Debug, Default)]
+pub struct Walk {
+    /// The first and last step numbers.
+    pub steps: Option<(i64, i64)>,
+    /// The gait said it reached the goal.
+    pub reached: bool,
+    /// The gait's last status.
+    pub gait: Option<TrajectoryStatusT>,
+    /// The simulated world's last report.
+    pub report: Option<SimReportT>,
+    /// The true pose, last.
+    pub pose: Option<PoseStampedT>,
+    /// The tracking of the joints.
+    pub tracking: Tracking,
+    /// CPU per app: sum of shares and samples.
+    pub cpu: BTreeMap<String, (f64, u32)>,
+}
+
+impl Walk {
+    /// Takes a step counter.
+    pub fn counter(&mut self, c: &StepCounterT) {
+        self.steps = Some(match self.steps {
+            None => (c.step_number, c.step_number),
+            Some((a, _)) => (a, c.step_number),
+        });
+    }
+
+    /// Takes a deputy's report.
+    pub fn launch(&mut self, s: &LaunchStatusT) {
+        for a in &s.apps {
+            if a.pid > 0 {
+                let e = self.cpu.entry(a.name.clone()).or_default();
+                e.0 += a.cpu;
+                e.1 += 1;
+            }
+        }
+    }
+
+    /// The summary's lines and whether the walk passes: the goal reached within `tolerance`
+    /// (by the true pose when known), no collision and no fall.
+    pub fn summary(&self, goal: [f64; 2], tolerance: f64, secs: f64) -> (Vec<String>, bool) {
+        let mut lines = Vec::new();
+        let mut ok = self.reached;
+        let steps = self.steps.map_or(0, |(a, b)| b - a);
+        lines.push(format!(
+            "goal ({:.3}, {:.3}): {} after {secs:.1} s, {steps} steps",
+            goal[0],
+            goal[1],
+            if self.reached {
+                "reached"
+            } else {
+                "NOT reached"
+            },
+        ));
+        // Where the robot stands: the centre of its feet (the simulated world's truth).
+        let at = match (&self.report, &self.pose) {
+            (Some(r), _) => Some((
+                (r.feet[0][0] + r.feet[1][0]) / 2.0,
+                (r.feet[0][1] + r.feet[1][1]) / 2.0,
+                "the feet's true centre",
+            )),
+            (None, Some(p)) => Some((p.pose.position[0], p.pose.position[1], "the true pelvis")),
+            _ => None,
+        };
+        if let Some((x, y, what)) = at {
+            let d = (x - goal[0]).hypot(y - goal[1]);
+            let within = d <= tolerance;
+            ok &= within;
+            lines.push(format!(
+                "{what} ({x:.3}, {y:.3}): {d:.3} m from the goal ({} the {tolerance} m tolerance)",
+                if within { "within" } else { "OUTSIDE" }
+            ));
+        }
+        if let Some(r) = &self.report {
+            ok &= r.collisions == 0 && r.falls == 0;
+            lines.push(format!(
+                "smallest clearance of a foot or shank from an obstacle {:.3} m; collisions {}; falls {}; smallest ZMP margin {:.3} m; joints at a limit {}; touch-downs {}",
+                r.min_clearance, r.collisions, r.falls, r.min_zmp_margin, r.limits, r.touchdowns
+            ));
+        }
+        let t = &self.tracking;
+        lines.push(format!(
+            "tracking error (commanded rows against the drives' positions): max {:.4} rad ({}), rms {:.4} rad over {} samples",
+            t.max.0,
+            if t.max.1.is_empty() { "-" } else { &t.max.1 },
+            t.rms(),
+            t.samples
+        ));
+        if !self.cpu.is_empty() {
+            let per: Vec<String> = self
+                .cpu
+                .iter()
+                .map(|(n, (sum, k))| format!("{n} {:.1} %", 100.0 * sum / (*k).max(1) as f64))
+                .collect();
+            lines.push(format!(
+                "CPU per app (mean over the walk): {}",
+                per.join(", ")
+            ));
+        }
+        if let Some(g) = &self.gait {
+            lines.push(format!(
+                "plans taken by the gait {}, refused {}{}",
+                g.accepted,
+                g.refused,
+                if g.refused > 0 {
+                    format!(" (last: {})", g.last_refusal)
+                } else {
+                    String::new()
+                }
+            ));
+        }
+        (lines, ok)
+    }
+}

@@ -1,0 +1,779 @@
+//! Archie's body, moved kinematically from its joints' true positions.
+//!
+//! One foot, the anchor, stays where it stands on the ground. The pelvis is where the anchor
+//! leg's forward kinematics put it, the other foot where its own leg puts it from there. When
+//! the joints would push the other foot into the ground (by more than [`BodyConfig::takeover`]),
+//! that foot has touched down and carries the weight: it becomes the anchor, set down level on
+//! the surface under it. No dynamics: the body goes where the joints take it, so what the
+//! body reports is what the joints did, and a fall is told by the cart-table ZMP of the whole
+//! robot's centre of mass (point masses of the robot file) leaving the support polygon.
+
+use std::collections::VecDeque;
+
+use serde::Deserialize;
+use stride_gait::support::{self, Pose2, Sole, P2};
+use stride_kinematics::archie::{self, ArchieConfig, Leg, JOINTS, Q};
+use stride_kinematics::math::Pose;
+
+use crate::world::World;
+use crate::V3;
+
+/// How the body meets the ground and what counts as wrong.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BodyConfig {
+    /// A sole this close above the ground touches it, m.
+    pub contact: f64,
+    /// A sole the joints push this far into the ground takes over as the anchor, m.
+    pub takeover: f64,
+    /// Gravity, m/s².
+    pub g: f64,
+    /// The COM's velocity and acceleration (and the pelvis's, for the IMU) are fitted over
+    /// this window, s; they, and the ZMP, are those of its middle.
+    pub window: f64,
+    /// The ZMP this far outside the support polygon is a fall, m.
+    pub fall_margin: f64,
+    /// A joint this close to its position limit is at it, rad.
+    pub limit_margin: f64,
+    /// Points checked along each shank (knee to ankle) for collisions.
+    pub shank_points: usize,
+}
+
+impl Default for BodyConfig {
+    fn default() -> BodyConfig {
+        BodyConfig {
+            contact: 0.002,
+            takeover: 0.001,
+            g: 9.80665,
+            window: 0.1,
+            fall_margin: 0.0,
+            limit_margin: 0.001,
+            shank_points: 5,
+        }
+    }
+}
+
+impl BodyConfig {
+    /// Checks the numbers.
+    pub fn check(&self) -> Result<(), String> {
+        let ok = [self.contact, self.takeover, self.window, self.limit_margin]
+            .iter()
+            .all(|v| v.is_finite() && *v >= 0.0)
+            && self.g.is_finite()
+            && self.g > 0.0
+            && self.window > 0.0
+            && self.fall_margin.is_finite()
+            && self.shank_points >= 2;
+        if ok {
+            Ok(())
+        } else {
+            Err(format!(
+                "the body's contact, takeover, window and limit margin must be finite and not \
+                 negative (window positive), gravity positive, at least 2 shank points: {self:?}"
+            ))
+        }
+    }
+}
+
+/// Something the body did that a run should know of. Each is reported when it begins.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// A foot touched down and took the weight.
+    Touchdown {
+        /// The foot.
+        leg: Leg,
+        /// Its sole's centre, m.
+        at: V3,
+    },
+    /// A foot or shank went into an obstacle.
+    Collision {
+        /// "left_foot", "right_shank", ...
+        part: String,
+        /// The obstacle's index in the scene.
+        obstacle: usize,
+        /// Where, m.
+        at: V3,
+    },
+    /// The ZMP left the support polygon.
+    Fall {
+        /// Where the ZMP was, m.
+        zmp: P2,
+        /// Its margin in the polygon (negative: outside), m.
+        margin: f64,
+    },
+    /// A joint reached its position limit.
+    Limit {
+        /// The joint, e.g. "left_knee".
+        joint: String,
+        /// Its angle, rad.
+        value: f64,
+    },
+}
+
+/// What the body's counters hold.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Touch-downs.
+    pub touchdowns: u64,
+    /// Collisions begun.
+    pub collisions: u64,
+    /// Falls begun (the ZMP left the polygon).
+    pub falls: u64,
+    /// Joints that reached a limit.
+    pub limits: u64,
+}
+
+/// The body at one instant.
+#[derive(Debug, Clone, PartialEq)]
+pub struct State {
+    /// Time, s.
+    pub t: f64,
+    /// The pelvis centre's pose in the world.
+    pub pelvis: Pose,
+    /// Each sole's centre (left, right), m, and heading, rad.
+    pub feet: [[f64; 4]; 2],
+    /// Each foot on the ground.
+    pub contact: [bool; 2],
+    /// The foot that carries the weight.
+    pub anchor: Leg,
+    /// The whole robot's centre of mass, m.
+    pub com: V3,
+    /// The smallest horizontal distance of a foot or shank from an obstacle now, m.
+    pub clearance: f64,
+    /// Fitted at the window's middle (`t - window / 2`): the pelvis's velocity and
+    /// acceleration, m/s and m/s², its angular velocity, rad/s (world frame), the COM's
+    /// cart-table ZMP and its margin in the support polygon of then, m.
+    pub fitted: Option<Fitted>,
+}
+
+/// Figures fitted over the body's window.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fitted {
+    /// The window's middle, s.
+    pub t: f64,
+    /// The pelvis's velocity, m/s.
+    pub velocity: V3,
+    /// The pelvis's acceleration, m/s².
+    pub acceleration: V3,
+    /// The pelvis's angular velocity, rad/s.
+    pub angular_velocity: V3,
+    /// The ZMP, m.
+    pub zmp: P2,
+    /// Its margin in the support polygon (negative: outside), m.
+    pub margin: f64,
+}
+
+struct Sample {
+    t: f64,
+    com: V3,
+    pelvis: Pose,
+    ground: f64,
+    polygon: Vec<P2>,
+}
+
+/// Archie's body in a world.
+pub struct Body {
+    robot: ArchieConfig,
+    cfg: BodyConfig,
+    anchor: Leg,
+    /// The anchor's sole frame in the world.
+    anchor_pose: Pose,
+    /// Where the body was set down (x, y, heading).
+    start: [f64; 3],
+    /// A foot has lifted since: the body stands on its own.
+    lifted: bool,
+    history: VecDeque<Sample>,
+    colliding: Vec<(String, usize)>,
+    at_limit: Vec<String>,
+    falling: bool,
+    counts: Counts,
+    /// The last state.
+    pub state: State,
+}
+
+fn idx(leg: Leg) -> usize {
+    match leg {
+        Leg::Left => 0,
+        Leg::Right => 1,
+    }
+}
+
+fn other(leg: Leg) -> Leg {
+    match leg {
+        Leg::Left => Leg::Right,
+        Leg::Right => Leg::Left,
+    }
+}
+
+/// The heading of a frame.
+pub fn yaw_of(p: &Pose) -> f64 {
+    p.r[1][0].atan2(p.r[0][0])
+}
+
+/// The unit quaternion (w, x, y, z) of a rotation matrix.
+pub fn quaternion(r: &[[f64; 3]; 3]) -> [f64; 4] {
+    let tr = r[0][0] + r[1][1] + r[2][2];
+    let q = if tr > 0.0 {
+        let s = (tr + 1.0).sqrt() * 2.0;
+        [
+            0.25 * s,
+            (r[2][1] - r[1][2]) / s,
+            (r[0][2] - r[2][0]) / s,
+            (r[1][0] - r[0][1]) / s,
+        ]
+    } else if r[0][0] > r[1][1] && r[0][0] > r[2][2] {
+        let s = (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt() * 2.0;
+        [
+            (r[2][1] - r[1][2]) / s,
+            0.25 * s,
+            (r[0][1] + r[1][0]) / s,
+            (r[0][2] + r[2][0]) / s,
+        ]
+    } else if r[1][1] > r[2][2] {
+        let s = (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt() * 2.0;
+        [
+            (r[0][2] - r[2][0]) / s,
+            (r[0][1] + r[1][0]) / s,
+            0.25 * s,
+            (r[1][2] + r[2][1]) / s,
+        ]
+    } else {
+        let s = (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt() * 2.0;
+        [
+            (r[1][0] - r[0][1]) / s,
+            (r[0][2] + r[2][0]) / s,
+            (r[1][2] + r[2][1]) / s,
+            0.25 * s,
+        ]
+    };
+    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    q.map(|v| v / n)
+}
+
+/// Least-squares quadratic through `(t, v)` about `tm`: value, slope and second derivative.
+fn quadratic(ts: &[f64], vs: &[f64], tm: f64) -> [f64; 3] {
+    // Normal equations of v = a + b·s + c·s², s = t - tm.
+    let mut m = [[0.0; 3]; 3];
+    let mut y = [0.0; 3];
+    for (&t, &v) in ts.iter().zip(vs) {
+        let s = t - tm;
+        let p = [1.0, s, s * s];
+        for i in 0..3 {
+            for j in 0..3 {
+                m[i][j] += p[i] * p[j];
+            }
+            y[i] += p[i] * v;
+        }
+    }
+    // Cramer's rule.
+    let det = |a: &[[f64; 3]; 3]| {
+        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+            - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    };
+    let d = det(&m);
+    let mut out = [0.0; 3];
+    for (k, o) in out.iter_mut().enumerate() {
+        let mut a = m;
+        for i in 0..3 {
+            a[i][k] = y[i];
+        }
+        *o = det(&a) / d;
+    }
+    [out[0], out[1], 2.0 * out[2]]
+}
+
+impl Body {
+    /// The body standing at `start` (x, y, heading: the point between its feet) with its
+    /// joints at `q` (left, right): the lower sole on the ground under it. Until a foot first
+    /// lifts, the body stays centred there (the robot being set down from its frame while its
+    /// joints move into their pose: the feet slide into place).
+    pub fn new(
+        robot: ArchieConfig,
+        cfg: BodyConfig,
+        start: [f64; 3],
+        q: [Q; 2],
+        world: &World,
+    ) -> Body {
+        let mut body = Body {
+            cfg,
+            anchor: Leg::Left,
+            anchor_pose: Pose::IDENTITY,
+            start,
+            lifted: false,
+            history: VecDeque::new(),
+            colliding: Vec::new(),
+            at_limit: Vec::new(),
+            falling: false,
+            counts: Counts::default(),
+            state: State {
+                t: f64::NAN,
+                pelvis: Pose::IDENTITY,
+                feet: [[0.0; 4]; 2],
+                contact: [true; 2],
+                anchor: Leg::Left,
+                com: [0.0; 3],
+                clearance: f64::INFINITY,
+                fitted: None,
+            },
+            robot,
+        };
+        body.place(&q, world);
+        let _ = body.step(f64::NAN, &q, world);
+        body.history.clear();
+        body
+    }
+
+    /// Sets the body down centred on its start: the lower sole on the ground.
+    fn place(&mut self, q: &[Q; 2], world: &World) {
+        let [x, y, yaw] = self.start;
+        let pelvis0 = Pose::yawed([0.0; 3], yaw);
+        let soles = [Leg::Left, Leg::Right]
+            .map(|leg| pelvis0.then(&archie::fk(&self.robot.links, leg, &q[idx(leg)])));
+        let centres = soles.map(|s| self.centre(&s));
+        let anchor = if centres[1][2] < centres[0][2] {
+            Leg::Right
+        } else {
+            Leg::Left
+        };
+        let mid = [
+            (centres[0][0] + centres[1][0]) / 2.0,
+            (centres[0][1] + centres[1][1]) / 2.0,
+        ];
+        let a = centres[idx(anchor)];
+        let ground = world.ground(a[0] - mid[0] + x, a[1] - mid[1] + y);
+        let shift = [x - mid[0], y - mid[1], ground - a[2]];
+        let s = soles[idx(anchor)];
+        self.anchor = anchor;
+        self.anchor_pose = Pose::yawed(
+            [s.p[0] + shift[0], s.p[1] + shift[1], s.p[2] + shift[2]],
+            yaw_of(&s),
+        );
+    }
+
+    /// The counters so far.
+    pub fn counts(&self) -> Counts {
+        self.counts
+    }
+
+    /// The robot.
+    pub fn robot(&self) -> &ArchieConfig {
+        &self.robot
+    }
+
+    /// The sole frames (left, right) in the world for the pelvis at `pelvis`.
+    fn soles(&self, pelvis: &Pose, q: &[Q; 2]) -> [Pose; 2] {
+        [Leg::Left, Leg::Right]
+            .map(|leg| pelvis.then(&archie::fk(&self.robot.links, leg, &q[idx(leg)])))
+    }
+
+    fn centre(&self, sole: &Pose) -> V3 {
+        sole.apply(&[self.robot.foot.centre_ahead, 0.0, 0.0])
+    }
+
+    /// The height of a sole above the ground: its lowest corner's.
+    fn clearance(&self, sole: &Pose, world: &World) -> f64 {
+        let (l, w) = (self.robot.foot.length / 2.0, self.robot.foot.width / 2.0);
+        let b = self.robot.foot.centre_ahead;
+        [[l, w], [-l, w], [-l, -w], [l, -w]]
+            .iter()
+            .map(|c| {
+                let p = sole.apply(&[b + c[0], c[1], 0.0]);
+                p[2] - world.ground(p[0], p[1])
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Moves the body to the joints `q` (left, right; [`JOINTS`] order) at time `t`, s;
+    /// returns what began.
+    pub fn step(&mut self, t: f64, q: &[Q; 2], world: &World) -> Vec<Event> {
+        let mut events = Vec::new();
+        if !self.lifted {
+            self.place(q, world);
+        }
+        let mut pelvis = self
+            .anchor_pose
+            .then(&archie::fk(&self.robot.links, self.anchor, &q[idx(self.anchor)]).inv());
+        let mut soles = self.soles(&pelvis, q);
+        let o = other(self.anchor);
+        let h = self.clearance(&soles[idx(o)], world);
+        if h < -self.cfg.takeover {
+            // The other foot is down and carries the robot: it stands where it came down,
+            // its lowest corner on the ground (its tilt kept: levelling it would turn the
+            // whole body by the joints' tracking error at every step).
+            let s = soles[idx(o)];
+            self.anchor = o;
+            self.anchor_pose = Pose {
+                r: s.r,
+                p: [s.p[0], s.p[1], s.p[2] - h],
+            };
+            let before = pelvis;
+            pelvis = self
+                .anchor_pose
+                .then(&archie::fk(&self.robot.links, o, &q[idx(o)]).inv());
+            // Setting the foot down moved the whole body by a rigid step (a millimetre, a
+            // tilt of the sole): the window's past moves with it, so the fitted motion (and
+            // the ZMP) sees no jump that the joints did not make.
+            let step = pelvis.then(&before.inv());
+            for h in &mut self.history {
+                h.com = step.apply(&h.com);
+                h.pelvis = step.then(&h.pelvis);
+            }
+            soles = self.soles(&pelvis, q);
+            if !t.is_nan() {
+                self.counts.touchdowns += 1;
+                events.push(Event::Touchdown {
+                    leg: o,
+                    at: self.centre(&soles[idx(o)]),
+                });
+            }
+        }
+        let contact = [0, 1]
+            .map(|k| k == idx(self.anchor) || self.clearance(&soles[k], world) <= self.cfg.contact);
+        if !contact[0] || !contact[1] {
+            self.lifted = true;
+        }
+        let feet = [0, 1].map(|k| {
+            let c = self.centre(&soles[k]);
+            [c[0], c[1], c[2], yaw_of(&soles[k])]
+        });
+        let com = self.com(&pelvis, q);
+        let mut clearance = f64::INFINITY;
+        if !t.is_nan() {
+            clearance = self.collisions(&pelvis, q, world, &mut events);
+            self.limits(q, &mut events);
+        }
+        let sole = Sole {
+            length: self.robot.foot.length,
+            width: self.robot.foot.width,
+        };
+        let on: Vec<Pose2> = (0..2)
+            .filter(|&k| contact[k])
+            .map(|k| Pose2 {
+                p: [feet[k][0], feet[k][1]],
+                yaw: feet[k][3],
+            })
+            .collect();
+        let anchor_ground = feet[idx(self.anchor)][2];
+        self.history.push_back(Sample {
+            t,
+            com,
+            pelvis,
+            ground: anchor_ground,
+            polygon: support::polygon(&sole, &on),
+        });
+        while self
+            .history
+            .front()
+            .is_some_and(|s| s.t < t - self.cfg.window)
+        {
+            self.history.pop_front();
+        }
+        let fitted = self.fit();
+        if let Some(f) = &fitted {
+            let out = f.margin < -self.cfg.fall_margin;
+            if out && !self.falling {
+                self.counts.falls += 1;
+                events.push(Event::Fall {
+                    zmp: f.zmp,
+                    margin: f.margin,
+                });
+            }
+            self.falling = out;
+        }
+        self.state = State {
+            t,
+            pelvis,
+            feet,
+            contact,
+            anchor: self.anchor,
+            com,
+            clearance,
+            fitted,
+        };
+        events
+    }
+
+    /// The whole robot's centre of mass: the pelvis's mass at its centre, each thigh's and
+    /// shank's at its middle, each foot's at the ankle roll axis.
+    fn com(&self, pelvis: &Pose, q: &[Q; 2]) -> V3 {
+        let m = &self.robot.mass;
+        let mut sum = pelvis.p.map(|v| v * m.pelvis);
+        for leg in [Leg::Left, Leg::Right] {
+            let (_, p) = archie::fk_points(&self.robot.links, leg, &q[idx(leg)]);
+            let mid = |a: &V3, b: &V3| [0, 1, 2].map(|k| (a[k] + b[k]) / 2.0);
+            for (mass, point) in [
+                (m.thigh, mid(&p[0], &p[1])),
+                (m.shank, mid(&p[1], &p[2])),
+                (m.foot, p[3]),
+            ] {
+                let w = pelvis.apply(&point);
+                for k in 0..3 {
+                    sum[k] += mass * w[k];
+                }
+            }
+        }
+        let total = m.total();
+        sum.map(|v| v / total)
+    }
+
+    /// Reports the feet and shanks that went into an obstacle; returns their smallest
+    /// clearance.
+    fn collisions(
+        &mut self,
+        pelvis: &Pose,
+        q: &[Q; 2],
+        world: &World,
+        events: &mut Vec<Event>,
+    ) -> f64 {
+        let mut now = Vec::new();
+        let mut clearance = f64::INFINITY;
+        let (l, w) = (self.robot.foot.length / 2.0, self.robot.foot.width / 2.0);
+        let b = self.robot.foot.centre_ahead;
+        for leg in [Leg::Left, Leg::Right] {
+            let (sole, p) = archie::fk_points(&self.robot.links, leg, &q[idx(leg)]);
+            let n = self.cfg.shank_points;
+            let shank = (0..n).map(|i| {
+                let s = i as f64 / (n - 1) as f64;
+                pelvis.apply(&[0, 1, 2].map(|k| p[1][k] + s * (p[2][k] - p[1][k])))
+            });
+            // The sole's corners and centre, just above its face.
+            let foot = [[0.0, 0.0], [l, w], [-l, w], [-l, -w], [l, -w]]
+                .map(|c| pelvis.then(&sole).apply(&[b + c[0], c[1], 0.005]));
+            for (part, points) in [
+                ("shank", shank.collect::<Vec<_>>()),
+                ("foot", foot.to_vec()),
+            ] {
+                let name = format!("{}_{part}", leg.name());
+                for p in &points {
+                    clearance = clearance.min(world.clearance(*p));
+                }
+                if let Some((ob, at)) = points
+                    .iter()
+                    .find_map(|p| world.obstacle_at(*p).map(|o| (o, *p)))
+                {
+                    if !self.colliding.iter().any(|(n, o)| *n == name && *o == ob) {
+                        self.counts.collisions += 1;
+                        events.push(Event::Collision {
+                            part: name.clone(),
+                            obstacle: ob,
+                            at,
+                        });
+                    }
+                    now.push((name, ob));
+                }
+            }
+        }
+        self.colliding = now;
+        clearance
+    }
+
+    fn limits(&mut self, q: &[Q; 2], events: &mut Vec<Event>) {
+        let mut now = Vec::new();
+        for leg in [Leg::Left, Leg::Right] {
+            for (k, spec) in self.robot.joint.iter().enumerate() {
+                let v = q[idx(leg)][k];
+                let m = self.cfg.limit_margin;
+                if v <= spec.min + m || v >= spec.max - m {
+                    let joint = format!("{}_{}", leg.name(), JOINTS[k]);
+                    if !self.at_limit.contains(&joint) {
+                        self.counts.limits += 1;
+                        events.push(Event::Limit {
+                            joint: joint.clone(),
+                            value: v,
+                        });
+                    }
+                    now.push(joint);
+                }
+            }
+        }
+        self.at_limit = now;
+    }
+
+    /// The window's fit, once it spans most of the window.
+    fn fit(&self) -> Option<Fitted> {
+        let (first, last) = (self.history.front()?, self.history.back()?);
+        if self.history.len() < 5 || last.t - first.t < 0.8 * self.cfg.window {
+            return None;
+        }
+        let tm = (first.t + last.t) / 2.0;
+        let ts: Vec<f64> = self.history.iter().map(|s| s.t).collect();
+        let fit = |f: &dyn Fn(&Sample) -> f64| {
+            let vs: Vec<f64> = self.history.iter().map(f).collect();
+            quadratic(&ts, &vs, tm)
+        };
+        let com = [0, 1, 2].map(|k| fit(&|s: &Sample| s.com[k]));
+        let pel = [0, 1, 2].map(|k| fit(&|s: &Sample| s.pelvis.p[k]));
+        let mid = self
+            .history
+            .iter()
+            .min_by(|a, b| (a.t - tm).abs().total_cmp(&(b.t - tm).abs()))?;
+        let z = com[2][0] - mid.ground;
+        let zmp = [0, 1].map(|k| com[k][0] - z / self.cfg.g * com[k][2]);
+        // Angular velocity from the rotation across the window: R_last · R_firstᵀ.
+        let dr = stride_kinematics::math::mul(
+            &last.pelvis.r,
+            &stride_kinematics::math::tr(&first.pelvis.r),
+        );
+        let dt = last.t - first.t;
+        let w = [
+            (dr[2][1] - dr[1][2]) / 2.0 / dt,
+            (dr[0][2] - dr[2][0]) / 2.0 / dt,
+            (dr[1][0] - dr[0][1]) / 2.0 / dt,
+        ];
+        Some(Fitted {
+            t: tm,
+            velocity: pel.map(|f| f[1]),
+            acceleration: pel.map(|f| f[2]),
+            angular_velocity: w,
+            zmp,
+            margin: support::margin(&mid.polygon, zmp),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use stride_world::scene::Scene;
+
+    fn robot() -> ArchieConfig {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../config/robots/archie.toml"
+        );
+        ArchieConfig::load(std::path::Path::new(path)).unwrap()
+    }
+
+    fn world(obstacles: &str) -> World {
+        let text = format!(
+            "name = \"t\"\nstart = {{ x = 0.0, y = 0.0 }}\ngoal = {{ x = 2.0, y = 0.0 }}\n\
+             [map]\nx = [-1.0, 3.0]\ny = [-1.0, 1.0]\n{obstacles}"
+        );
+        World::new(Scene::parse(&text, std::path::Path::new(".")).unwrap()).unwrap()
+    }
+
+    /// Joints that put each sole at `feet` (sole centres, level) under a pelvis at `pelvis`.
+    fn joints(r: &ArchieConfig, pelvis: [f64; 3], feet: [[f64; 3]; 2]) -> [Q; 2] {
+        let p = Pose::yawed(pelvis, 0.0);
+        [Leg::Left, Leg::Right].map(|leg| {
+            let sole = p.inv().then(&r.sole_frame(feet[idx(leg)], 0.0));
+            archie::ik(&r.links, leg, &sole).unwrap()
+        })
+    }
+
+    #[test]
+    fn a_step_moves_the_body_on_the_stance_foot_and_lands_the_swing_foot() {
+        // The pelvis shifts over the right foot, the left foot lifts, swings 0.2 m ahead and
+        // lands: the right foot never moves, the left lands where its joints put it, the
+        // pelvis is where the legs hold it, and the touch-down is reported.
+        let r = robot();
+        let w = world("");
+        let z = 0.6;
+        let q0 = joints(&r, [0.0, 0.0, z], [[0.0, 0.1, 0.0], [0.0, -0.1, 0.0]]);
+        let mut body = Body::new(r.clone(), BodyConfig::default(), [0.0, 0.0, 0.0], q0, &w);
+        let start = body.state.feet[1];
+        assert!(
+            (start[1] + 0.1).abs() < 1e-9 && start[2].abs() < 1e-9,
+            "{start:?}"
+        );
+        let mut events = Vec::new();
+        let n = 200;
+        // Set down centred on the start; from the first lift on, the right foot stays and the
+        // rest goes where the joints put it from there.
+        let mut right0 = None;
+        for i in 0..=n {
+            let s = i as f64 / n as f64;
+            let lift = 0.05 * (std::f64::consts::PI * s).sin();
+            let left = [0.2 * s, 0.1, lift];
+            let pelvis = [0.1 * s, -0.05 * (std::f64::consts::PI * s).sin(), z];
+            let q = joints(&r, pelvis, [left, [0.0, -0.1, 0.0]]);
+            events.extend(body.step(i as f64 * 0.01, &q, &w));
+            let right = body.state.feet[1];
+            // Touching within `contact` (2 mm) of the ground.
+            assert_eq!(body.state.contact[0], lift <= 0.002, "the left foot at {s}");
+            if right0.is_none() && body.state.contact[0] {
+                continue;
+            }
+            let r0 = *right0.get_or_insert(right);
+            assert!((0..3).all(|k| (right[k] - r0[k]).abs() < 1e-9));
+            assert!((r0[0]).abs() < 2e-3 && (r0[1] + 0.1).abs() < 1e-9 && r0[2].abs() < 1e-9);
+            let off = [r0[0], r0[1] + 0.1, r0[2]];
+            let p = body.state.pelvis.p;
+            assert!(
+                (0..3).all(|k| (p[k] - pelvis[k] - off[k]).abs() < 1e-9),
+                "{p:?}"
+            );
+        }
+        // Weight onto the left foot: the right lifts a little, the left takes over.
+        let q = joints(&r, [0.1, 0.0, z], [[0.2, 0.1, 0.0], [0.0, -0.1, 0.01]]);
+        events.extend(body.step(2.02, &q, &w));
+        assert_eq!(body.state.anchor, Leg::Left);
+        assert!(events
+            .iter()
+            .any(|e| matches!(e, Event::Touchdown { leg: Leg::Left, .. })));
+        assert_eq!(body.counts().collisions + body.counts().limits, 0);
+    }
+
+    #[test]
+    fn a_foot_in_an_obstacle_a_joint_at_its_limit_and_a_zmp_off_the_sole_are_reported() {
+        let r = robot();
+        let w = world(
+            "[[obstacle]]\nshape = \"box\"\nx = 0.35\ny = 0.1\nlength = 0.1\nwidth = 0.3\nheight = 0.1\n",
+        );
+        let z = 0.6;
+        let q0 = joints(&r, [0.0, 0.0, z], [[0.0, 0.1, 0.0], [0.0, -0.1, 0.0]]);
+        let mut body = Body::new(r.clone(), BodyConfig::default(), [0.0, 0.0, 0.0], q0, &w);
+        let mut events = Vec::new();
+        // The left foot slides 0.3 m ahead at 5 cm: into the box.
+        for i in 0..=100 {
+            let s = i as f64 / 100.0;
+            let q = joints(&r, [0.0, -0.1, z], [[0.3 * s, 0.1, 0.05], [0.0, -0.1, 0.0]]);
+            events.extend(body.step(i as f64 * 0.01, &q, &w));
+        }
+        assert!(
+            events.iter().any(
+                |e| matches!(e, Event::Collision { part, obstacle: 0, .. } if part == "left_foot")
+            ),
+            "{events:?}"
+        );
+        assert_eq!(body.counts().collisions, 1, "reported once while it lasts");
+        // The pelvis jerks sideways far past the right sole: the ZMP leaves it.
+        let mut t = 1.01;
+        for i in 0..30 {
+            let y = -0.1 + 0.2 * ((i as f64) / 30.0).powi(2) * if i % 2 == 0 { 1.0 } else { -1.0 };
+            let q = joints(&r, [0.0, y, z], [[0.0, 0.1, 0.05], [0.0, -0.1, 0.0]]);
+            events.extend(body.step(t, &q, &w));
+            t += 0.01;
+        }
+        assert!(body.counts().falls >= 1, "{events:?}");
+        // A knee beyond its range.
+        let mut q = q0;
+        q[0][3] = r.joint[3].max;
+        events.extend(body.step(t, &q, &w));
+        assert!(events
+            .iter()
+            .any(|e| matches!(e, Event::Limit { joint, .. } if joint == "left_knee")));
+    }
+
+    #[test]
+    fn the_fit_gives_a_still_bodys_zmp_under_its_com() {
+        let r = robot();
+        let w = world("");
+        let q0 = joints(&r, [0.0, 0.0, 0.6], [[0.0, 0.1, 0.0], [0.0, -0.1, 0.0]]);
+        let mut body = Body::new(r, BodyConfig::default(), [0.5, 0.2, 0.0], q0, &w);
+        for i in 0..20 {
+            body.step(i as f64 * 0.01, &q0, &w);
+        }
+        let f = body.state.fitted.expect("a full window");
+        let c = body.state.com;
+        assert!((f.zmp[0] - c[0]).abs() < 1e-9 && (f.zmp[1] - c[1]).abs() < 1e-9);
+        assert!(f.margin > 0.0 && f.velocity.iter().all(|v| v.abs() < 1e-9));
+        assert!(
+            (c[0] - 0.5).abs() < 0.1 && (c[1] - 0.2).abs() < 1e-9,
+            "{c:?}"
+        );
+        let q = quaternion(&body.state.pelvis.r);
+        assert!((q[0] - 1.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,144 @@
+//! The robot walks, in closed loop: `stride launch archie --sim` runs each part of Archie's
+//! simulated robot as its own process (the fake Elmo drives of each leg on a CAN bus carried
+//! over LCM, both legs' Elmo bridges, the gait, the footstep planner, the simulated world),
+//! and `stride walk` sends a goal, follows the walk and judges it by the simulated world's
+//! true pose and reports.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use stride_tests::{bin, require_sandbox, udpm_url, Proc};
+
+fn repo(p: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(p)
+}
+
+/// The shipped Archie profile and simulator configuration, on `url`, in `dir`: the scene
+/// `scene` (TOML text), and the simulator's extra lines `sim_extra` (e.g. an obstacle that
+/// appears).
+fn setup(dir: &Path, url: &str, scene: &str, sim_extra: &str) -> PathBuf {
+    let launch = dir.join("config/launch");
+    std::fs::create_dir_all(&launch).unwrap();
+    std::fs::write(dir.join("config/scene.toml"), scene).unwrap();
+    let mut sim: toml::Table =
+        toml::from_str(&std::fs::read_to_string(repo("config/sim-archie.toml")).unwrap()).unwrap();
+    sim.insert("scene".into(), "scene.toml".into());
+    sim.insert(
+        "robot_file".into(),
+        repo("config/robots/archie.toml")
+            .to_string_lossy()
+            .into_owned()
+            .into(),
+    );
+    let extra: toml::Table = toml::from_str(sim_extra).unwrap();
+    sim.extend(extra);
+    std::fs::write(dir.join("config/sim.toml"), toml::to_string(&sim).unwrap()).unwrap();
+    let mut profile: toml::Table =
+        toml::from_str(&std::fs::read_to_string(repo("config/launch/archie.toml")).unwrap())
+            .unwrap();
+    profile.insert("lcm_url".into(), url.into());
+    for app in profile["app"].as_array_mut().unwrap() {
+        let app = app.as_table_mut().unwrap();
+        let config = app["config"].as_str().unwrap().to_string();
+        let path = if config.ends_with("sim-archie.toml") {
+            dir.join("config/sim.toml")
+        } else {
+            repo("config/launch").join(config)
+        };
+        app.insert("config".into(), path.to_string_lossy().into_owned().into());
+        app.insert("args".into(), {
+            let mut a = app
+                .get("args")
+                .cloned()
+                .unwrap_or(toml::Value::Array(vec![]));
+            a.as_array_mut()
+                .unwrap()
+                .extend(["--log-level".into(), "warn".into()]);
+            a
+        });
+    }
+    let path = launch.join("walk.toml");
+    std::fs::write(&path, toml::to_string(&profile).unwrap()).unwrap();
+    path
+}
+
+fn launch(profile: &Path, url: &str, dir: &Path) -> Proc {
+    let mut c = Command::new(bin("stride"));
+    c.args(["--lcm-url", url, "--log-level", "warn", "launch"])
+        .arg(profile)
+        .args(["--sim", "--log-dir"])
+        .arg(dir.join("logs"));
+    Proc::spawn(c)
+}
+
+/// `stride walk` to `goal`: its exit status and summary.
+fn walk(url: &str, goal: &str, timeout: f64) -> (bool, String) {
+    let out = Command::new(bin("stride"))
+        .args([
+            "--lcm-url",
+            url,
+            "--log-level",
+            "warn",
+            "walk",
+            goal,
+            "--timeout",
+        ])
+        .arg(timeout.to_string())
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        ),
+    )
+}
+
+fn number_after(text: &str, label: &str) -> f64 {
+    let i = text
+        .find(label)
+        .unwrap_or_else(|| panic!("{label:?} in {text}"))
+        + label.len();
+    text[i..]
+        .trim_start()
+        .split(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-'))
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap_or_else(|_| panic!("a number after {label:?} in {text}"))
+}
+
+const FLAT: &str = r#"
+name = "flat"
+start = { x = 0.0, y = 0.0 }
+goal = { x = 1.0, y = 0.0 }
+[map]
+x = [-1.0, 4.0]
+y = [-2.0, 2.0]
+"#;
+
+#[test]
+#[ignore = "multicast: scripts/test runs it in a private network namespace"]
+fn archie_walks_a_metre_to_its_goal_in_closed_loop() {
+    require_sandbox();
+    let dir = tempfile::tempdir().unwrap();
+    let url = udpm_url(7811);
+    // The ZMP of the measured motion moves with the drives' lag, more on a loaded machine (up
+    // to about 7 cm seen): the fall threshold is widened here; what this test guards is the
+    // loop (goal, plans at every step, rows, drives, body) reaching the goal without a
+    // collision.
+    let profile = setup(dir.path(), &url, FLAT, "[body]\nfall_margin = 0.1\n");
+    let launcher = launch(&profile, &url, dir.path());
+    let (ok, summary) = walk(&url, "1.0,0", 90.0);
+    let (st, out) = launcher.interrupt();
+    assert!(ok, "{summary}\n{out}");
+    assert!(summary.contains("reached"), "{summary}");
+    let steps = number_after(&summary, "s, ");
+    assert!((4.0..=12.0).contains(&steps), "{steps} steps: {summary}");
+    assert!(summary.contains("collisions 0;"), "{summary}");
+    let err = number_after(&summary, "drives' positions): max");
+    assert!(err < 0.15, "tracking error {err} rad: {summary}");
+    assert!(st.success(), "the launcher's shutdown: {out}");
+}
