@@ -70,6 +70,13 @@ pub fn bin(name: &str) -> PathBuf {
     p
 }
 
+/// A workspace executable on the bus `url`, logging warnings only.
+pub fn on_bus(name: &str, url: &str) -> Command {
+    let mut c = Command::new(bin(name));
+    c.args(["--lcm-url", url, "--log-level", "warn"]);
+    c
+}
+
 /// Starts the stock `lcm-logger` recording `channels` on `url` into `path`, and returns once
 /// it records (a ping on `probe`, one of those channels, is in the file).
 pub fn lcm_logger(url: &str, channels: &str, path: &std::path::Path, probe: &str) -> Proc {

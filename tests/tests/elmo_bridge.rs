@@ -4,7 +4,6 @@
 //! dongle, the drives): a fault, a SIGKILL mid-motion, and the shutdown.
 
 use std::path::PathBuf;
-use std::process::Command;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -16,7 +15,7 @@ use stride_canopen::frame::NodeId;
 use stride_lcmtypes::stride::{
     CanFrameBatchT, JointStateT, JointTrajectoryT, NodeStatusT, TrajectoryStatusT,
 };
-use stride_tests::{bin, pty_rig, require_sandbox, udpm_url, usb2can, Proc};
+use stride_tests::{pty_rig, require_sandbox, udpm_url, usb2can, Proc};
 
 const JOINTS: [&str; 6] = [
     "left_hip_yaw",
@@ -204,9 +203,8 @@ fn wait_for(lcm: &Lcm, secs: f64, done: impl FnMut() -> bool) -> bool {
 }
 
 fn start_bridge_with(url: &str, config: &std::path::Path) -> Proc {
-    let mut c = Command::new(bin("stride-elmo-bridge"));
-    c.args(["--lcm-url", url, "--log-level", "warn", "--config"])
-        .arg(config);
+    let mut c = stride_tests::on_bus("stride-elmo-bridge", url);
+    c.arg("--config").arg(config);
     Proc::spawn(c)
 }
 

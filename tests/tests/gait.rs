@@ -6,7 +6,6 @@
 //! bridge, and stands; a late plan is dropped, a bad one refused with its reason.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -23,7 +22,7 @@ use stride_kinematics::archie::ArchieConfig;
 use stride_lcmtypes::stride::{
     FootstepPlanT, JointStateT, NodeStatusT, StepCounterT, TrajectoryStatusT,
 };
-use stride_tests::{bin, handle_until, require_sandbox, udpm_url, Proc};
+use stride_tests::{handle_until, require_sandbox, udpm_url, Proc};
 
 fn repo(p: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(p)
@@ -125,8 +124,8 @@ fn renumbered(plan: &FootstepPlanT, echo: i64) -> FootstepPlanT {
 }
 
 fn spawn(name: &str, url: &str, args: &[&std::ffi::OsStr]) -> Proc {
-    let mut c = Command::new(bin(name));
-    c.args(["--lcm-url", url, "--log-level", "warn"]).args(args);
+    let mut c = stride_tests::on_bus(name, url);
+    c.args(args);
     Proc::spawn(c)
 }
 

@@ -5,9 +5,8 @@
 //! true pose and reports.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-use stride_tests::{bin, require_sandbox, udpm_url, Proc};
+use stride_tests::{on_bus, require_sandbox, udpm_url, Proc};
 
 fn repo(p: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(p)
@@ -63,8 +62,8 @@ fn setup(dir: &Path, url: &str, scene: &str, sim_extra: &str) -> PathBuf {
 }
 
 fn launch(profile: &Path, url: &str, dir: &Path) -> Proc {
-    let mut c = Command::new(bin("stride"));
-    c.args(["--lcm-url", url, "--log-level", "warn", "launch"])
+    let mut c = on_bus("stride", url);
+    c.arg("launch")
         .arg(profile)
         .args(["--sim", "--log-dir"])
         .arg(dir.join("logs"));
@@ -73,16 +72,8 @@ fn launch(profile: &Path, url: &str, dir: &Path) -> Proc {
 
 /// `stride walk` to `goal`: its exit status and summary.
 fn walk(url: &str, goal: &str, timeout: f64) -> (bool, String) {
-    let out = Command::new(bin("stride"))
-        .args([
-            "--lcm-url",
-            url,
-            "--log-level",
-            "warn",
-            "walk",
-            goal,
-            "--timeout",
-        ])
+    let out = on_bus("stride", url)
+        .args(["walk", goal, "--timeout"])
         .arg(timeout.to_string())
         .output()
         .unwrap();

@@ -14,7 +14,7 @@ use stride_can_lcm::{batch, frame_to_msg, msg_to_frame, now_us, rx_channel, tx_c
 use stride_canbus::{CanBus, MemBus, MemNode};
 use stride_elmo_bridge::BridgeConfig;
 use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
-use stride_lcmtypes::stride::{CanFrameBatchT, JointStateT, NodeStatusT};
+use stride_lcmtypes::stride::{CanFrameBatchT, JointStateT};
 use stride_node::{Node, NodeArgs, Period, Stamper, Tick};
 
 /// Fake Elmo drives on a CAN bus carried over LCM.
@@ -142,9 +142,6 @@ impl Tick for Rig {
             self.period.next(now);
             let m = self.state();
             p.publish(&self.channel, &m)?;
-        }
-        if node.health().state != NodeStatusT::STATE_RUNNING {
-            node.set_running();
         }
         Ok(now + Duration::from_millis(1))
     }

@@ -22,7 +22,7 @@ use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
 
 use crate::{
     at_goal, command_msg, counter_msg, feet_after, goal_of, min_jerk, plan_of, request_msg,
-    trajectory_msg, GaitConfig, Goal, Robot,
+    trajectory_msg, GaitConfig, Goal, Robot, ROW_PERIOD,
 };
 
 /// The walking controller.
@@ -430,9 +430,6 @@ impl GaitApp {
         })
     }
 }
-
-/// The rows' period, s (the gait's joint rows are every other 5 ms sample).
-const ROW_PERIOD: f64 = 0.01;
 
 /// When a change decided at `t` is to take over, as the walker's `now` (it switches
 /// `switch_ahead` later): at the end of what was sent to the trajectory bridges while a stream
@@ -877,10 +874,9 @@ impl GaitApp {
 
     /// Takes goals, and asks the planner for the way there at every step (Archie).
     fn pursue(&mut self, node: &Node, t: f64) -> anyhow::Result<()> {
-        let (Some((_, rx)), Some(cfg)) = (&self.goals, self.cfg.goal.clone()) else {
+        let Some((_, rx)) = &self.goals else {
             return Ok(());
         };
-        let cfg = &cfg;
         let goals: Vec<PoseStampedT> = rx.try_iter().collect();
         for m in goals {
             match goal_of(&m) {
@@ -896,7 +892,7 @@ impl GaitApp {
                 None => self.refused("a goal that is not made of finite numbers".into()),
             }
         }
-        let Body::Archie { walker, .. } = &self.body else {
+        let (Body::Archie { walker, .. }, Some(cfg)) = (&self.body, &self.cfg.goal) else {
             return Ok(());
         };
         let Some(p) = &mut self.goal else {
@@ -974,7 +970,7 @@ impl GaitApp {
         if self.quiet || self.rows.times.len() < 2 {
             return Ok(());
         }
-        let n = ((self.cfg.chunk / 0.01).round() as usize).max(2);
+        let n = ((self.cfg.chunk / ROW_PERIOD).round() as usize).max(2);
         loop {
             let last = self.rows.times.len() - 1;
             let (i0, append) = match self.sent {

@@ -14,7 +14,7 @@ use stride_gait::pattern::Generator;
 use stride_gait::pattern::{Kind, PatternConfig, PlacementConfig};
 use stride_gait::preview::PreviewConfig;
 use stride_gait::support::Sole;
-use stride_gait::swing::SwingConfig;
+use stride_gait::swing::{Place, SwingConfig};
 use stride_gait::timeline::{Footstep, Side, TimingConfig};
 use stride_gait::walker::{Plan, StepCounter, WalkerConfig};
 use stride_kinematics::archie::ArchieConfig;
@@ -22,6 +22,9 @@ use stride_lcmtypes::stride::{
     FootT, FootstepPlanRequestT, FootstepPlanT, HeaderT, ImuT, JointCommandT, JointTrajectoryT,
     PoseStampedT, StepCounterT,
 };
+
+/// The period of Archie's joint rows, s (every other 5 ms sample of the pattern).
+pub const ROW_PERIOD: f64 = 0.01;
 
 /// Which robot the gait drives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -467,7 +470,7 @@ pub fn archie_gait(
         length: robot.foot.length,
         width: robot.foot.width,
     };
-    let mut legs = ArchieGait::new(robot, &p.height, cfg.zmp_ahead, 0.01, p.whole_body)
+    let mut legs = ArchieGait::new(robot, &p.height, cfg.zmp_ahead, ROW_PERIOD, p.whole_body)
         .map_err(|e| e.to_string())?;
     if let Some(z) = p.z_c {
         legs.z_c = z;
@@ -543,6 +546,26 @@ mod tests {
                 .collect(),
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn a_goal_facing_back_is_reached_by_feet_whose_headings_straddle_pi() {
+        // The feet's mean heading is taken on the circle: -3.1 and 3.1 rad face π (their
+        // plain average, 0, faces the other way).
+        let cfg: GoalConfig = toml::from_str("yaw_tolerance = 0.1").unwrap();
+        let goal = Goal {
+            x: 1.0,
+            y: 0.0,
+            yaw: std::f64::consts::PI,
+            any_heading: false,
+        };
+        let feet = [[1.0, -0.1, 0.0, 3.1], [1.0, 0.1, 0.0, -3.1]];
+        assert!(at_goal(&feet, &goal, &cfg));
+        assert!(!at_goal(
+            &[[1.0, -0.1, 0.0, 0.0], [1.0, 0.1, 0.0, 0.0]],
+            &goal,
+            &cfg
+        ));
     }
 
     #[test]
@@ -718,7 +741,7 @@ pub fn goal_of(m: &PoseStampedT) -> Option<Goal> {
 
 /// Where the feet stand once step `number` (and every step before it) of `timeline` has
 /// landed, and the side that swings next.
-pub fn feet_after(timeline: &stride_gait::timeline::Timeline, number: i64) -> ([Place4; 2], Side) {
+pub fn feet_after(timeline: &stride_gait::timeline::Timeline, number: i64) -> ([Place; 2], Side) {
     let mut feet = timeline.feet_start;
     let mut next = Side::Left;
     for s in timeline
@@ -732,16 +755,13 @@ pub fn feet_after(timeline: &stride_gait::timeline::Timeline, number: i64) -> ([
     (feet, next)
 }
 
-/// A foot's place: x, y, z (m), heading (rad).
-pub type Place4 = [f64; 4];
-
 /// A plan request from the feet `feet` (left, right), `next` to swing first, during step
 /// `step`, to `goal`.
 pub fn request_msg(
     header: HeaderT,
     id: i64,
     step: i64,
-    feet: [Place4; 2],
+    feet: [Place; 2],
     next: Side,
     goal: &Goal,
     cfg: &GoalConfig,
@@ -787,13 +807,14 @@ pub fn request_msg(
 }
 
 /// True when the feet stand within the goal's tolerances.
-pub fn at_goal(feet: &[Place4; 2], goal: &Goal, cfg: &GoalConfig) -> bool {
+pub fn at_goal(feet: &[Place; 2], goal: &Goal, cfg: &GoalConfig) -> bool {
     let (x, y) = (
         (feet[0][0] + feet[1][0]) / 2.0,
         (feet[0][1] + feet[1][1]) / 2.0,
     );
     let d = (x - goal.x).hypot(y - goal.y);
-    let yaw = (feet[0][3] + feet[1][3]) / 2.0;
+    // The feet's mean heading (on the circle: -3.1 and 3.1 rad average to π, not 0).
+    let yaw = (feet[0][3].sin() + feet[1][3].sin()).atan2(feet[0][3].cos() + feet[1][3].cos());
     let dyaw = (yaw - goal.yaw + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
         - std::f64::consts::PI;
     d <= cfg.tolerance && (goal.any_heading || dyaw.abs() <= cfg.yaw_tolerance)

@@ -324,17 +324,16 @@ fn walk(
     let mut traj = Vec::new();
     for c in trajectories {
         let (s, r) = node.queue::<JointTrajectoryT>(c)?;
-        s.set_queue_capacity(10_000)?;
         subs.push(s);
         traj.push(r);
     }
     let mut meas = Vec::new();
     for c in states {
         let (s, r) = node.queue::<JointStateT>(c)?;
-        s.set_queue_capacity(10_000)?;
         subs.push(s);
         meas.push(r);
     }
+    // A walk's worth of rows and states between two turns of the loop.
     for s in &subs {
         s.set_queue_capacity(10_000)?;
     }
@@ -596,7 +595,7 @@ impl Deputy {
             && (o.host.is_empty() || self.host.as_deref().is_none_or(|h| h == o.host))
     }
 
-    /// One turn of the deputy's work; false when it is done (shut down).
+    /// One turn of the deputy's work.
     fn turn(&mut self, node: &Node, now: Instant) -> anyhow::Result<()> {
         for b in self.beats.try_iter() {
             self.sup.heartbeat(b, now);

@@ -88,23 +88,14 @@ pub struct Supervisor {
     shutdown: Option<u8>,
 }
 
-fn ticks_per_second() -> f64 {
+/// A system configuration value, or `default` when the system gives none.
+fn sysconf(name: libc::c_int, default: i64) -> i64 {
     // SAFETY: sysconf has no preconditions.
-    let t = unsafe { libc::sysconf(libc::_SC_CLK_TCK) };
-    if t > 0 {
-        t as f64
+    let v = unsafe { libc::sysconf(name) };
+    if v > 0 {
+        v as i64
     } else {
-        100.0
-    }
-}
-
-fn page_size() -> i64 {
-    // SAFETY: sysconf has no preconditions.
-    let p = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
-    if p > 0 {
-        p as i64
-    } else {
-        4096
+        default
     }
 }
 
@@ -127,7 +118,8 @@ fn signal_group(pid: u32, sig: i32) {
     }
 }
 
-fn state_name(s: i8) -> &'static str {
+/// The name of a launch state.
+pub fn state_word(s: i8) -> &'static str {
     match s {
         LaunchAppT::STATE_WAITING => "waiting",
         LaunchAppT::STATE_STARTING => "starting",
@@ -139,11 +131,6 @@ fn state_name(s: i8) -> &'static str {
         LaunchAppT::STATE_FAILED => "failed",
         _ => "?",
     }
-}
-
-/// The name of a launch state.
-pub fn state_word(s: i8) -> &'static str {
-    state_name(s)
 }
 
 impl Supervisor {
@@ -187,11 +174,6 @@ impl Supervisor {
     /// The profile.
     pub fn profile(&self) -> &Profile {
         &self.profile
-    }
-
-    /// The names of the apps supervised here.
-    pub fn names(&self) -> Vec<String> {
-        self.procs.iter().map(|p| p.app.name.clone()).collect()
     }
 
     /// Takes a heartbeat from the bus.
@@ -242,7 +224,7 @@ impl Supervisor {
             tracing::info!(
                 app = p.app.name.as_str(),
                 "{}{}{}",
-                state_name(state),
+                state_word(state),
                 if detail.is_empty() { "" } else { ": " },
                 detail
             );
@@ -334,11 +316,18 @@ impl Supervisor {
         let lost_after = Duration::from_secs_f64(self.profile.file.lost_after);
         let backoff = self.profile.file.backoff;
         let shutting = self.shutdown.is_some();
-        // Which apps are ready, before any borrow of the processes.
-        let ready: Vec<bool> = self
+        // What each app still waits for, before any borrow of the processes.
+        let waiting: Vec<Vec<String>> = self
             .procs
             .iter()
-            .map(|p| p.app.depends.iter().all(|d| self.ready(d, now)))
+            .map(|p| {
+                p.app
+                    .depends
+                    .iter()
+                    .filter(|d| !self.ready(d, now))
+                    .cloned()
+                    .collect()
+            })
             .collect();
         for (k, p) in self.procs.iter_mut().enumerate() {
             // An exit.
@@ -412,7 +401,7 @@ impl Supervisor {
                 continue;
             }
             match p.state {
-                LaunchAppT::STATE_WAITING if ready[k] => {
+                LaunchAppT::STATE_WAITING if waiting[k].is_empty() => {
                     match Self::spawn(p, &self.lines_tx, &self.log_dir, now) {
                         Ok(()) => {
                             Self::set(p, LaunchAppT::STATE_STARTING, String::new(), &mut notes)
@@ -421,11 +410,10 @@ impl Supervisor {
                     }
                 }
                 LaunchAppT::STATE_WAITING => {
-                    let missing: Vec<&str> = p.app.depends.iter().map(String::as_str).collect();
                     Self::set(
                         p,
                         LaunchAppT::STATE_WAITING,
-                        format!("for {} to run", missing.join(", ")),
+                        format!("for {} to run", waiting[k].join(", ")),
                         &mut notes,
                     );
                 }
@@ -497,8 +485,8 @@ impl Supervisor {
     }
 
     fn sample_usage(&mut self, now: Instant) {
-        let tps = ticks_per_second();
-        let page = page_size();
+        let tps = sysconf(libc::_SC_CLK_TCK, 100) as f64;
+        let page = sysconf(libc::_SC_PAGESIZE, 4096);
         for p in &mut self.procs {
             let Some(c) = &p.child else {
                 p.cpu = 0.0;

@@ -51,6 +51,8 @@ impl AppConfig for SimConfig {
 /// The running simulator.
 pub struct SimApp {
     sim: Sim,
+    /// The configuration (the run's copy is the simulation's).
+    cfg: SimConfig,
     scene: String,
     _subs: Vec<lcm::Subscription>,
     joints: Vec<Receiver<JointStateT>>,
@@ -106,7 +108,8 @@ impl SimApp {
             perception: Period::hz(cfg.perception.rate_hz),
             report: Period::hz(cfg.report_rate_hz),
             scene: scene.name.clone(),
-            sim: Sim::new(cfg, scene, robot)?,
+            sim: Sim::new(cfg.clone(), scene, robot)?,
+            cfg,
             _subs: subs,
             joints,
             t0: Instant::now(),
@@ -167,7 +170,7 @@ impl Tick for SimApp {
             self.ready = true;
             node.set_running();
         }
-        let cfg = self.sim.cfg.clone();
+        let cfg = &self.cfg;
         if let Some(m) = self.sim.pose_msg(self.stamps[0].stamp()) {
             p.publish(&cfg.pose_channel, &m)?;
         }

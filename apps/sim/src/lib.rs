@@ -308,6 +308,11 @@ pub fn elevation_msg(header: HeaderT, grid: &Grid, x: f64, y: f64, size: f64) ->
     }
 }
 
+/// A world vector in the frame whose axes are the columns of `r`.
+fn in_frame(r: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|i| (0..3).map(|k| r[k][i] * v[k]).sum())
+}
+
 fn pose_t(p: &stride_kinematics::math::Pose) -> PoseT {
     PoseT {
         position: p.p,
@@ -358,11 +363,6 @@ impl Sim {
             min_clearance: f64::INFINITY,
             appeared: 0,
         })
-    }
-
-    /// The world.
-    pub fn world(&self) -> &World {
-        &self.world
     }
 
     /// The body, once every joint was measured.
@@ -516,8 +516,7 @@ impl Sim {
             cov[k * 7] = c.position_sigma.powi(2);
         }
         cov[35] = c.yaw_sigma.powi(2);
-        let r = &s.pelvis.r;
-        let body_frame = |v: [f64; 3]| [0, 1, 2].map(|i| (0..3).map(|k| r[k][i] * v[k]).sum());
+        let body_frame = |v| in_frame(&s.pelvis.r, v);
         let (lin, ang) = match &s.fitted {
             Some(f) => (body_frame(f.velocity), body_frame(f.angular_velocity)),
             None => ([0.0; 3], [0.0; 3]),
@@ -541,7 +540,7 @@ impl Sim {
         let s = &b.state;
         let c = &self.cfg.imu;
         let r = &s.pelvis.r;
-        let body_frame = |v: [f64; 3]| [0, 1, 2].map(|i| (0..3).map(|k| r[k][i] * v[k]).sum());
+        let body_frame = |v| in_frame(r, v);
         let (w, a) = match &s.fitted {
             Some(f) => (f.angular_velocity, f.acceleration),
             None => ([0.0; 3], [0.0; 3]),

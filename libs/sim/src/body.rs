@@ -356,11 +356,6 @@ impl Body {
         self.counts
     }
 
-    /// The robot.
-    pub fn robot(&self) -> &ArchieConfig {
-        &self.robot
-    }
-
     /// The sole frames (left, right) in the world for the pelvis at `pelvis`.
     fn soles(&self, pelvis: &Pose, q: &[Q; 2]) -> [Pose; 2] {
         [Leg::Left, Leg::Right]
@@ -495,7 +490,8 @@ impl Body {
     }
 
     /// The whole robot's centre of mass: the pelvis's mass at its centre, each thigh's and
-    /// shank's at its middle, each foot's at the ankle roll axis.
+    /// shank's at its middle, each foot's at the ankle roll axis. Computed here from the robot
+    /// file, not by the gait's code: the simulated world grades the gait's patterns.
     fn com(&self, pelvis: &Pose, q: &[Q; 2]) -> V3 {
         let m = &self.robot.mass;
         let mut sum = pelvis.p.map(|v| v * m.pelvis);

@@ -3,7 +3,7 @@
 use serde::Deserialize;
 use stride_world::geom::{point_polygon_distance, v2, V2};
 use stride_world::grid::{Grid, GridError};
-use stride_world::scene::{Obstacle, Scene};
+use stride_world::scene::{MapSpec, Obstacle, Scene};
 
 use crate::noise::Rng;
 use crate::V3;
@@ -39,28 +39,21 @@ pub struct World {
 impl World {
     /// The world of a scene.
     pub fn new(scene: Scene) -> Result<World, GridError> {
+        // The ground over the same extent as the seen map (which the obstacles widen): the
+        // scene without its obstacles, on the scene's own extent.
+        let (x, y, resolution) = Grid::extent_of(&scene);
         let bare = Scene {
             obstacle: Vec::new(),
+            map: Some(MapSpec {
+                x,
+                y,
+                resolution: Some(resolution),
+                elevation: scene.map.as_ref().and_then(|m| m.elevation.clone()),
+            }),
             ..scene.clone()
         };
-        let mut ground = Grid::of_scene(&bare)?;
-        // The same extent as the seen map (the obstacles widen it).
+        let ground = Grid::of_scene(&bare)?;
         let seen = Grid::of_scene(&scene)?;
-        if (ground.nx, ground.ny, ground.origin) != (seen.nx, seen.ny, seen.origin) {
-            ground = Grid {
-                h: (0..seen.nx * seen.ny)
-                    .map(|k| {
-                        let h = ground.height(seen.centre(k % seen.nx, k / seen.nx));
-                        if h.is_nan() {
-                            0.0
-                        } else {
-                            h
-                        }
-                    })
-                    .collect(),
-                ..seen.clone()
-            };
-        }
         let footprints = scene.obstacle.iter().map(|o| o.polygon()).collect();
         Ok(World {
             scene,
