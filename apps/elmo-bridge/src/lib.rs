@@ -512,6 +512,10 @@ impl<B: CanBus> Bridge<B> {
                     self.stop(why.clone(), &mut notes);
                     self.go_down(why, "");
                 }
+                Event::EndUnreported { joint } => notes.push(Note::Warn(format!(
+                    "{joint}: the drive did not report the end of its last motion; the next \
+                     one went ahead"
+                ))),
                 Event::StreamStopped { joints } => {
                     let why = format!(
                         "trajectory stream ran dry: {} decelerating to a stop",

@@ -62,6 +62,12 @@ pub enum Event {
         /// Joint.
         joint: String,
     },
+    /// A drive did not report the end of a motion within [`END_REPORT_WAIT`] of its end by
+    /// the master's clock: its next motion went ahead without it.
+    EndUnreported {
+        /// Joint.
+        joint: String,
+    },
 }
 
 impl Event {
@@ -69,7 +75,10 @@ impl Event {
     /// for), false for what a healthy system also sees now and then (a stream that ran dry
     /// and decelerated).
     pub fn is_fault(&self) -> bool {
-        !matches!(self, Event::StreamStopped { .. })
+        !matches!(
+            self,
+            Event::StreamStopped { .. } | Event::EndUnreported { .. }
+        )
     }
 }
 
@@ -103,7 +112,15 @@ pub struct Counters {
     pub underflows: u64,
     /// Times the drives were enabled again after a stop.
     pub rearms: u64,
+    /// Motions the master ended on its own clock whose end no drive reported in time
+    /// ([`END_REPORT_WAIT`]): the next motion went ahead without it.
+    pub unreported_ends: u64,
 }
+
+/// How long the next motion of a joint waits for its drive's report that the last one
+/// ended (the EMCY that ends every motion), once the master's clock says it has: the start
+/// the master counts from may have waited on the wire behind a table's worth of rows.
+pub const END_REPORT_WAIT: std::time::Duration = std::time::Duration::from_millis(200);
 
 /// What the master says of itself.
 #[derive(Debug, Clone, PartialEq)]
@@ -133,10 +150,10 @@ pub(crate) struct Axis {
     pub written: u64,
     /// The plan time the motion loaded in the table starts at (its start is not sent yet).
     pub start_at: Option<i64>,
-    /// The drive's write pointer at the end of the last motion, when the master ended it on
-    /// its own clock: the drive's own report of that end may still be on its way, and must
-    /// not end the next motion.
-    pub ended_at: Option<u16>,
+    /// When (master µs) the master ended the last motion on its own clock: until the drive
+    /// reports that end (or [`END_REPORT_WAIT`] passes) it may still be playing, and the next
+    /// motion's rows and start wait.
+    pub ended_at: Option<i64>,
     pub last_heartbeat: Option<Instant>,
     pub heartbeat_lost: bool,
     /// Brought up and enabled (a boot-up message then means the drive reset).
@@ -358,13 +375,7 @@ impl Track {
                     let ax = &mut self.axes[a];
                     ax.on_state(v[0] as u16, v[1] as u32 as i32, sampled, now, period);
                     if ax.playing {
-                        let before = ax.queue.pending();
                         ax.queue.on_read_pointer(v[2] as u16);
-                        if ax.queue.pending() < before {
-                            // The drive plays the new motion: the old one's end was reported
-                            // before this (an EMCY outranks a TPDO on the bus).
-                            ax.ended_at = None;
-                        }
                     }
                 }
             }
@@ -412,11 +423,11 @@ impl Track {
                 ax.queue.on_read_pointer(read);
                 true
             }
-            // The end of a motion the master already ended on its own clock, reported late.
-            Some(ElmoEmcy::MotionTerminated {
-                reason: 1 | 3,
-                write,
-            }) if ax.ended_at == Some(write) => {
+            // The end of a motion the master already ended on its own clock, reported late:
+            // the next motion may go.
+            Some(ElmoEmcy::MotionTerminated { reason: 1 | 3, .. })
+                if ax.ended_at.is_some() && !ax.playing =>
+            {
                 ax.ended_at = None;
                 true
             }

@@ -13,7 +13,7 @@ use stride_canopen::sync;
 
 use crate::config::Motion;
 use crate::error::MasterError;
-use crate::master::{controlword_rpdo, setpoint_rpdo, Event, Master};
+use crate::master::{controlword_rpdo, setpoint_rpdo, Event, Master, END_REPORT_WAIT};
 use crate::plan::{self, Knot, Tag};
 use crate::trajectory::{self, Start, Trajectory};
 
@@ -313,7 +313,9 @@ impl<B: CanBus> Master<B> {
         let lookahead = self.cfg.lookahead.as_micros() as i64;
         let mut wake = self.next_sync;
         for ax in &self.track.axes {
-            if ax.playing {
+            // Playing, or waiting for the drive's report of its last motion's end (it comes
+            // with the traffic, and the SYNC wakes the master meanwhile).
+            if ax.playing || ax.ended_at.is_some() {
                 continue;
             }
             if let Some(at) = ax.start_at {
@@ -380,8 +382,20 @@ impl<B: CanBus> Master<B> {
                     .last_sent()
                     .is_some_and(|k| now_us - ax.lag >= k.t + 5000)
             {
-                ax.ended_at = Some(ax.queue.write_index());
+                ax.ended_at = Some(now_us);
                 ax.end_motion();
+            }
+            // No report of the end came: the next motion goes ahead (a drive still playing
+            // refuses its start, and says so).
+            if ax
+                .ended_at
+                .is_some_and(|at| now_us - at > END_REPORT_WAIT.as_micros() as i64)
+            {
+                ax.ended_at = None;
+                self.counters.unreported_ends += 1;
+                self.track.events.push(Event::EndUnreported {
+                    joint: ax.cfg.name.clone(),
+                });
             }
         }
     }
@@ -398,6 +412,10 @@ impl<B: CanBus> Master<B> {
             let mut sent_any = false;
             for a in 0..self.track.axes.len() {
                 let ax = &mut self.track.axes[a];
+                // The drive may still play the last motion: nothing new goes to its table.
+                if ax.ended_at.is_some() {
+                    continue;
+                }
                 // Keep a row spare: the drive's last row stays in its table until the next
                 // motion moves its read pointer.
                 if ax.queue.room() <= per_frame as u64 {
@@ -503,7 +521,10 @@ impl<B: CanBus> Master<B> {
                 let ax = &self.track.axes[a];
                 // Loaded: two rows in the table, or all the motion has.
                 let loaded = ax.queue.pending() >= 2 || ax.plan.is_empty() || ax.plan.ended();
-                !ax.playing && ax.start_at.is_some_and(|at| at <= now_us) && loaded
+                !ax.playing
+                    && ax.ended_at.is_none()
+                    && ax.start_at.is_some_and(|at| at <= now_us)
+                    && loaded
             })
             .collect();
         let mut go = Vec::new();
@@ -511,6 +532,12 @@ impl<B: CanBus> Master<B> {
             let ax = &mut self.track.axes[a];
             let node = ax.node;
             let at = ax.start_at.take().unwrap_or(now_us);
+            // A motion of one row (a replacement cut it there) has nothing to play: a drive
+            // refuses to begin a table of fewer than two rows, and reports no end.
+            if ax.queue.pending() < 2 {
+                ax.end_motion();
+                continue;
+            }
             match motion {
                 Motion::Pvt | Motion::Pt { .. } => {
                     let name = if motion == Motion::Pvt { b"PV" } else { b"PT" };

@@ -46,7 +46,12 @@ impl Rig {
     }
 
     pub fn with(n: u8, cfg: MasterConfig) -> Rig {
-        let bus = MemBus::new(1_000_000);
+        Rig::on_bus(n, cfg, 1_000_000)
+    }
+
+    /// [`Rig::with`] on a bus of `bits_per_second`.
+    pub fn on_bus(n: u8, cfg: MasterConfig, bits_per_second: u32) -> Rig {
+        let bus = MemBus::new(bits_per_second);
         let stop = Arc::new(AtomicBool::new(false));
         let levers: Vec<Levers> = (0..n).map(|_| Levers::default()).collect();
         let drives = levers
