@@ -197,13 +197,9 @@ fn whole_plan(rounds: usize) -> String {
     out
 }
 
-/// The generators as the benchmark runs them: the foot placement's displacement limit opened
-/// to 0.3 m (from standing, Kajita's algorithm moves the first footsteps it places about
-/// 0.2 m before it converges onto the plan; its default limit of 5 cm refuses that).
+/// The generators as the benchmark runs them: their defaults.
 fn generator(kind: Kind) -> Generator {
-    let mut cfg = common::config(kind);
-    cfg.placement.max_displacement = 0.3;
-    Generator::new(cfg).unwrap()
+    common::generator(kind)
 }
 
 /// How far the pattern moved a footstep from its plan, at most, m.

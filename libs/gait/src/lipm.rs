@@ -130,7 +130,12 @@ impl Pendulum {
     /// One axis after `t` seconds about a foot at `p` from position `x` and velocity `v`
     /// (eqs 16-17; with p = 0, eqs 7-8): position, velocity, acceleration.
     pub fn advance(&self, x: f64, v: f64, p: f64, t: f64) -> [f64; 3] {
-        let (ch, sh) = ((t / self.tc).cosh(), (t / self.tc).sinh());
+        self.advance_by(x, v, p, ((t / self.tc).cosh(), (t / self.tc).sinh()))
+    }
+
+    /// [`Pendulum::advance`] with cosh and sinh of t / T_c given (both axes share them).
+    #[inline]
+    fn advance_by(&self, x: f64, v: f64, p: f64, (ch, sh): (f64, f64)) -> [f64; 3] {
         let d = x - p;
         let pos = d * ch + self.tc * v * sh + p;
         let vel = if self.cfg.faithful.eq_7 {
@@ -227,8 +232,9 @@ pub struct Support {
 impl Support {
     /// The COM's position, velocity and acceleration at `t` seconds into the period.
     pub fn at(&self, p: &Pendulum, t: f64) -> [[f64; 2]; 3] {
-        let a = p.advance(self.start.x[0], self.start.v[0], self.foot[0], t);
-        let b = p.advance(self.start.x[1], self.start.v[1], self.foot[1], t);
+        let cs = ((t / p.tc).cosh(), (t / p.tc).sinh());
+        let a = p.advance_by(self.start.x[0], self.start.v[0], self.foot[0], cs);
+        let b = p.advance_by(self.start.x[1], self.start.v[1], self.foot[1], cs);
         [[a[0], b[0]], [a[1], b[1]], [a[2], b[2]]]
     }
 }
@@ -273,33 +279,26 @@ pub fn walk(p: &Pendulum, params: &[WalkParam], p0: [f64; 2], initial: State) ->
 }
 
 /// Kajita's algorithm over footsteps rather than walk parameters: `nominal[0]` is the first
-/// support foot p⁽⁰⁾ (placed as it stands), `nominal[n]` the planned footstep p⁽ⁿ⁾ with its
-/// heading. The walk primitive of step n ends halfway to the next footstep, in the heading
-/// of that footstep: (x̄, ȳ) = R(θ)ᵀ (p⁽ⁿ⁺¹⁾ − p⁽ⁿ⁾) / 2, which is eqs 13 and 25 for footsteps
-/// made by eqs 95-96; after the last footstep the primitive is a stop (0, 0).
+/// support foot p⁽⁰⁾, `nominal[n]` the planned footstep p⁽ⁿ⁾ with its heading. The walk
+/// primitive of step n ends halfway to the next footstep, in the heading of that footstep:
+/// (x̄, ȳ) = R(θ)ᵀ (p⁽ⁿ⁺¹⁾ − p⁽ⁿ⁾) / 2, which is eqs 13 and 25 for footsteps made by eqs
+/// 95-96; after the last footstep the primitive is a stop (0, 0).
+///
+/// The first support's foot stands where it is, but its ZMP point is placed by eq 24 too,
+/// from the initial state towards its own primitive: over a support of T_sup ≫ T_c the
+/// pendulum multiplies the initial state's distance from the walk's orbit by about e^(T_sup/T_c)
+/// (150 for Archie), so a state a millimetre off at the start would move the next footstep
+/// by decimetres; moved by about that millimetre, the ZMP starts the walk on its orbit. The
+/// pattern's margin check keeps it inside the sole.
 pub fn walk_footsteps(p: &Pendulum, nominal: &[([f64; 2], f64)], initial: State) -> Vec<Support> {
     let (c, s) = p.cs();
     let tc = p.tc();
     let k = [(c + 1.0) / (tc * s), (c - 1.0) / (tc * s)];
-    let mut out = Vec::with_capacity(nominal.len());
-    let mut state = initial;
-    let mut foot = nominal.first().map_or([0.0, 0.0], |n| n.0);
-    for n in 0..nominal.len() {
-        let end = p.step_end(state, foot);
-        out.push(Support {
-            n,
-            nominal: nominal[n].0,
-            foot,
-            start: state,
-            end,
-        });
-        if n + 1 == nominal.len() {
-            break;
-        }
-        state = end;
-        // The foot of step n + 1: the nominal footstep's primitive, from the one after.
-        let (pn, _) = nominal[n + 1];
-        let (bar, vbar) = match nominal.get(n + 2) {
+    // The foot of step n placed from the state at its support's start: the nominal
+    // footstep's primitive, from the one after.
+    let place = |n: usize, state: State| {
+        let (pn, _) = nominal[n];
+        let (bar, vbar) = match nominal.get(n + 1) {
             Some(&(next, theta)) => {
                 let d = [(next[0] - pn[0]) / 2.0, (next[1] - pn[1]) / 2.0];
                 let local = rot(-theta, d);
@@ -308,10 +307,24 @@ pub fn walk_footsteps(p: &Pendulum, nominal: &[([f64; 2], f64)], initial: State)
             None => ([0.0, 0.0], [0.0, 0.0]),
         };
         let target = [pn[0] + bar[0], pn[1] + bar[1]];
-        foot = [
+        [
             p.foot_placement(state.x[0], state.v[0], target[0], vbar[0]),
             p.foot_placement(state.x[1], state.v[1], target[1], vbar[1]),
-        ];
+        ]
+    };
+    let mut out = Vec::with_capacity(nominal.len());
+    let mut state = initial;
+    for (n, &(at, _)) in nominal.iter().enumerate() {
+        let foot = place(n, state);
+        let end = p.step_end(state, foot);
+        out.push(Support {
+            n,
+            nominal: at,
+            foot,
+            start: state,
+            end,
+        });
+        state = end;
     }
     out
 }

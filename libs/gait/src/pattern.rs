@@ -46,6 +46,12 @@ pub struct PlacementConfig {
     pub b: f64,
     /// How far the modified placement may move a planned footstep, m.
     pub max_displacement: f64,
+    /// How long before the second step's lift the pendulum takes the walk over from the
+    /// preview controller, s (that step lifts then). At the lift itself the COM has run so
+    /// far over the first footstep that the rear knee is nearly straight when its swing
+    /// begins (Archie's 20-step walk bent it back at 60.3 rad/s², limit 60).
+    #[serde(default = "default_handover_lead")]
+    pub handover_lead: f64,
     /// Eq 7's misprint, as printed.
     #[serde(default)]
     pub faithful_eq_7: bool,
@@ -59,9 +65,14 @@ impl Default for PlacementConfig {
             a: 10.0,
             b: 1.0,
             max_displacement: 0.05,
+            handover_lead: default_handover_lead(),
             faithful_eq_7: false,
         }
     }
+}
+
+fn default_handover_lead() -> f64 {
+    0.04
 }
 
 /// A pattern's parameters.
@@ -627,10 +638,12 @@ impl Generator {
     /// The foot placement generator. A walk from standing has no momentum for the walk
     /// primitives (the thesis gives no initial state; Kajita's, at rest over the first foot,
     /// places the first feet far from the plan), so the preview controller walks the first
-    /// step; from its touch-down, with the COM's state there, Kajita's algorithm places the
-    /// other footsteps, each a single support of T_sup; after the last the preview controller
-    /// settles the COM between the feet. Position and velocity are continuous throughout; the
-    /// acceleration jumps at each support exchange, as the pendulum's ZMP does.
+    /// step; shortly before the second lifts (the handover lead), with the COM's state there,
+    /// Kajita's algorithm takes over: the first support's ZMP placed within its sole by eq 24
+    /// (a few millimetres, see [`crate::lipm::walk_footsteps`]), then the other footsteps,
+    /// each a single support of T_sup; after the last the preview controller settles the COM
+    /// between the feet. Position and velocity are continuous throughout; the acceleration
+    /// jumps at each support exchange, as the pendulum's ZMP does.
     fn placement_pattern(&self, start: &Start, steps: &[Footstep]) -> Result<Pattern, GaitError> {
         if start.under_way.is_some() {
             return Err(GaitError::Plan(
@@ -648,9 +661,12 @@ impl Generator {
         let t_sup = self.cfg.placement.t_sup;
         let dt = self.cfg.preview.period;
         let first = full.timeline.steps[0].clone();
-        // The pendulum takes over when the second step lifts: the first step's foot is the
-        // support, the COM on its way over it.
-        let k1 = full.index_at(full.timeline.steps[1].lift + dt / 2.0);
+        // The pendulum takes over the handover lead before the second step lifts (not before
+        // the first has landed), and the second step lifts then: the first step's foot is
+        // the support, the COM on its way over it.
+        let lead = self.cfg.placement.handover_lead.max(0.0);
+        let handover = (full.timeline.steps[1].lift - lead).max(first.land);
+        let k1 = full.index_at(handover + dt / 2.0);
         let t1 = full.samples[k1].t;
         let at1 = full.samples[k1].com;
         let mut feet = full.timeline.feet_start;
@@ -713,8 +729,15 @@ impl Generator {
         let mut cursor = tl.cursor();
         for k in 0..k_walk {
             let t = t1 + k as f64 * dt;
-            // (The timeline's supports change at the same instants, to rounding.)
-            let n = (((t - t1) / t_sup + 1e-9).floor() as usize).min(supports.len() - 1);
+            // The pendulum's support is the timeline's, so that the ZMP and the support
+            // polygon change at the same sample (their instants agree only to rounding):
+            // support n while placed step n swings (the timeline's step n + 1), the last
+            // once every step has landed.
+            let n = match cursor.phase(t) {
+                Phase::Single { step, .. } => step.saturating_sub(1),
+                Phase::Double { .. } => placed_steps.len(),
+            }
+            .min(supports.len() - 1);
             let [pos, vel, acc] = supports[n].at(p, t - t1 - n as f64 * t_sup);
             let com = ComState {
                 x: Cart {

@@ -498,6 +498,13 @@ impl Cursor<'_> {
     /// earlier than the last `t` asked for.
     #[inline(always)]
     pub fn at(&mut self, t: f64) -> ([[Place; 3]; 2], Phase) {
+        let phase = self.phase(t);
+        (self.tl.feet_lifted(t, self.lifted), phase)
+    }
+
+    /// The phase at `t`, no earlier than the last `t` asked for.
+    #[inline(always)]
+    pub fn phase(&mut self, t: f64) -> Phase {
         let steps = &self.tl.steps;
         while self.lifted < steps.len() && steps[self.lifted].lift <= t {
             self.lifted += 1;
@@ -505,9 +512,6 @@ impl Cursor<'_> {
         while self.started < steps.len() && steps[self.started].start <= t {
             self.started += 1;
         }
-        let step = self.tl.step_started(t, self.started);
-        let feet = self.tl.feet_lifted(t, self.lifted);
-        let phase = self.tl.phase_in(t, step);
-        (feet, phase)
+        self.tl.phase_in(t, self.tl.step_started(t, self.started))
     }
 }
