@@ -648,14 +648,28 @@ pub fn exact_chain(links: &Links, theta: &[f64; 12]) -> [V3; 13] {
 pub struct Faithful {
     /// Eq 42's small-angle form of the hip roll, with `Stepping.sce`'s min(|θ01|, |θ02|).
     pub eq_42: bool,
+    /// `Stepping.sce`'s sign conventions for the pattern's angles θ0..θ11 (its
+    /// y1 = y0 − a1 sin θ0, the opposite of eq 39; its knee θ9 = π − γ, the opposite of eq 48;
+    /// a swing hip lifted forward positive). Off: each angle right-handed about its joint's
+    /// axis, this module's convention ([`SCRIPT_TO_JOINT`]).
+    pub scilab_signs: bool,
 }
+
+/// The sign that turns each of the script's angles θ0..θ11 into this module's convention
+/// (right-handed about the joint's axis): [`from_script`] is these signs and a reordering.
+pub const SCRIPT_TO_JOINT: [f64; 12] = [
+    -1.0, -1.0, -1.0, -1.0, -1.0, 1.0, -1.0, 1.0, -1.0, -1.0, -1.0, 1.0,
+];
 
 /// The joint pattern of one sample (eqs 41-54, as `Stepping.sce` runs them): the script's
 /// angles and the points it reports.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PatternSample {
-    /// θ0..θ11, rad (θ9 and θ10 wrapped to (−π, π]).
+    /// θ0..θ11, rad (θ9 and θ10 wrapped to (−π, π]): in `Stepping.sce`'s signs with
+    /// [`Faithful::scilab_signs`], else in this module's ([`SCRIPT_TO_JOINT`]).
     pub theta: [f64; 12],
+    /// The signs `theta` is in: the script's.
+    pub scilab_signs: bool,
     /// The pelvis centre's y (the script's y61), m.
     pub hip_y: f64,
     /// The right hip joint's height (z4), m.
@@ -737,12 +751,33 @@ pub fn joint_pattern(
     let p123 = theta[1] + theta[2] + theta[3];
     let hip_y =
         pts[5][1] + (links.a6 / 2.0) * (theta[4] + theta[0]).cos() * p123.cos() * theta[5].cos();
+    if !faithful.scilab_signs {
+        for (t, sign) in theta.iter_mut().zip(SCRIPT_TO_JOINT) {
+            *t *= sign;
+        }
+    }
     Ok(PatternSample {
         theta,
+        scilab_signs: faithful.scilab_signs,
         hip_y,
         z_hip: pts[4][2],
         hn1,
     })
+}
+
+impl PatternSample {
+    /// θ0..θ11 in `Stepping.sce`'s signs, whichever signs the sample is in.
+    pub fn script_theta(&self) -> [f64; 12] {
+        if self.scilab_signs {
+            return self.theta;
+        }
+        std::array::from_fn(|k| self.theta[k] * SCRIPT_TO_JOINT[k])
+    }
+
+    /// The legs' joints (left, right) of the sample.
+    pub fn legs(&self) -> (Q, Q) {
+        from_script(&self.script_theta())
+    }
 }
 
 /// Eq 41's residual for a support leg's hip roll (script sign) and ankle pitch: its y_COM

@@ -326,9 +326,18 @@ const TABLE: [[f64; 10]; 12] = [
     ],
 ];
 
+/// Eq 42 as printed, the angles in this module's signs.
+const EQ_42: Faithful = Faithful {
+    eq_42: true,
+    scilab_signs: false,
+};
+
 #[test]
 fn the_faithful_pattern_reproduces_the_section_2_4_6_table() {
-    let faithful = Faithful { eq_42: true };
+    let faithful = Faithful {
+        eq_42: true,
+        scilab_signs: true,
+    };
     for row in TABLE {
         let s = joint_pattern(&L, row[1] / 100.0, row[0] / 100.0, faithful).unwrap();
         let got = [
@@ -358,18 +367,48 @@ fn the_exact_pattern_puts_the_com_where_it_is_commanded() {
         let (dy, dx) = (row[0] / 100.0, row[1] / 100.0);
         let s = joint_pattern(&L, dx, dy, Faithful::default()).unwrap();
         // Eq 41 holds to round-off with the exact hip roll (not with the printed one).
-        let res = eq_41_residual(&L, s.theta[0], s.theta[1], dy);
+        let script = s.script_theta();
+        let res = eq_41_residual(&L, script[0], script[1], dy);
         assert!(res.abs() < 1e-9, "ΔY {dy}: residual {res:.2e} m");
         // Forward kinematics of the pattern: the pelvis centre at (ΔX, ΔY) from the support
         // ankle, upright.
-        let (_, qr) = from_script(&s.theta);
+        let (_, qr) = s.legs();
         let pelvis = fk(&L, Leg::Right, &qr).inv();
         assert!((pelvis.p[0] - dx).abs() < 1e-12 && (pelvis.p[1] - dy).abs() < 1e-12);
         let (_, dr) = pelvis.distance(&Pose::at(pelvis.p));
         assert!(dr < 1e-12);
-        let printed = joint_pattern(&L, dx, dy, Faithful { eq_42: true }).unwrap();
+        let printed = joint_pattern(&L, dx, dy, EQ_42).unwrap();
         let off = (printed.hip_y - dy).abs();
         assert!(off < 6e-4, "the printed form is off by {off} m");
+    }
+}
+
+#[test]
+fn scilabs_signs_are_a_flag_and_give_the_same_legs() {
+    // Stepping.sce's signs: its swing knee bends negative (θ9 = π − γ, table 2.4.6), its
+    // hip roll is eq 39's negated. In this module's convention a knee bends positive.
+    let script = Faithful {
+        eq_42: false,
+        scilab_signs: true,
+    };
+    for row in TABLE.iter().filter(|r| r[9] != 0.0) {
+        let (dy, dx) = (row[0] / 100.0, row[1] / 100.0);
+        let a = joint_pattern(&L, dx, dy, script).unwrap();
+        let b = joint_pattern(&L, dx, dy, Faithful::default()).unwrap();
+        assert!(
+            a.theta[9] < 0.0 && b.theta[9] > 0.0,
+            "{:?} {:?}",
+            a.theta,
+            b.theta
+        );
+        for k in 0..12 {
+            assert_eq!(
+                a.theta[k] * stride_kinematics::archie::SCRIPT_TO_JOINT[k],
+                b.theta[k]
+            );
+        }
+        assert_eq!(a.legs(), b.legs());
+        assert_eq!(a.script_theta(), b.script_theta());
     }
 }
 
@@ -377,11 +416,12 @@ fn the_exact_pattern_puts_the_com_where_it_is_commanded() {
 fn k2_zero_is_an_error_as_printed_and_solved_exactly() {
     // k2 = a6/2 − d3 − ΔY = 0 at ΔY = 1.5 cm: eq 42 divides by zero.
     let dy = L.a6 / 2.0 - L.d3;
-    let e = joint_pattern(&L, 0.0, dy, Faithful { eq_42: true }).unwrap_err();
+    let e = joint_pattern(&L, 0.0, dy, EQ_42).unwrap_err();
     assert!(matches!(e, KinError::Singular(_)), "{e}");
     let s = joint_pattern(&L, 0.0, dy, Faithful::default()).unwrap();
     assert!(s.theta.iter().all(|v| v.is_finite()));
-    assert!(eq_41_residual(&L, s.theta[0], s.theta[1], dy).abs() < 1e-9);
+    let script = s.script_theta();
+    assert!(eq_41_residual(&L, script[0], script[1], dy).abs() < 1e-9);
     // Beyond the leg: an error, not NaN.
     assert!(matches!(
         joint_pattern(&L, 0.7, 0.1, Faithful::default()),
