@@ -16,13 +16,14 @@ use stride_gait::GaitError;
 use stride_kinematics::archie::{ArchieConfig, Leg};
 use stride_kinematics::hexapod::Hexapod;
 use stride_lcmtypes::stride::{
-    FootstepPlanT, GaitCommandT, ImuT, JointStateT, NodeStatusT, PoseStampedT, TrajectoryStatusT,
+    FootstepPlanT, GaitCommandT, ImuT, JointStateT, NodeStatusT, OdometryT, PoseStampedT,
+    TrajectoryStatusT,
 };
 use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
 
 use crate::{
-    at_goal, command_msg, counter_msg, feet_after, goal_of, min_jerk, plan_of, request_msg,
-    trajectory_msg, GaitConfig, Goal, Robot, ROW_PERIOD,
+    at_goal, command_msg, counter_msg, feet_after, goal_of, min_jerk, odometry_pelvis, pelvis_at,
+    plan_of, request_msg, trajectory_msg, Anchor, GaitConfig, Goal, GoalConfig, Robot, ROW_PERIOD,
 };
 
 /// The walking controller.
@@ -80,9 +81,31 @@ struct Group {
     /// The last measured position of each joint, and when.
     measured: BTreeMap<String, (f64, Instant)>,
     stamper: Stamper,
+    /// The trajectory bridge's status, and its state last heard.
+    bridge: Option<(lcm::Subscription, Receiver<TrajectoryStatusT>)>,
+    bridge_state: Option<i8>,
 }
 
 impl Group {
+    /// Why the group's bridge stopped its drives, if its status turned to stopped since the
+    /// last call (a bridge stopped goes on saying so every second until it is re-armed).
+    fn bridge_stopped(&mut self) -> Option<String> {
+        let (_, rx) = self.bridge.as_ref()?;
+        let mut why = None;
+        for m in rx.try_iter() {
+            if m.state == TrajectoryStatusT::STATE_STOPPED
+                && self.bridge_state != Some(TrajectoryStatusT::STATE_STOPPED)
+            {
+                why = Some(format!(
+                    "the {} bridge ({}) stopped its drives: {}",
+                    self.name, m.node, m.reason
+                ));
+            }
+            self.bridge_state = Some(m.state);
+        }
+        why
+    }
+
     fn take_states(&mut self, now: Instant) {
         if let Some((_, rx)) = &self.states {
             while let Ok(s) = rx.try_recv() {
@@ -267,6 +290,11 @@ pub struct GaitApp {
     requests: i64,
     imu: Option<(lcm::Subscription, Receiver<ImuT>)>,
     attitude: Option<[f64; 2]>,
+    /// The pelvis's measured pose, and the gait's frame in the world it corrects.
+    odometry: Option<(lcm::Subscription, Receiver<OdometryT>)>,
+    anchor: Anchor,
+    /// Odometry messages not believed (too far from the anchor, or not finite).
+    odometry_dropped: u64,
     /// Walker time 0: the node's start, on the monotonic and the system clock.
     t0: Instant,
     utime0: i64,
@@ -366,6 +394,11 @@ impl GaitApp {
             .map(|(name, joints, ch)| -> anyhow::Result<Group> {
                 Ok(Group {
                     stamper: Stamper::new(""),
+                    bridge: match &ch.status {
+                        Some(c) => Some(node.queue::<TrajectoryStatusT>(c)?),
+                        None => None,
+                    },
+                    bridge_state: None,
                     states: match &ch.state {
                         Some(c) => Some(node.queue::<JointStateT>(c)?),
                         None => None,
@@ -387,6 +420,16 @@ impl GaitApp {
         let imu = match &cfg.imu_channel {
             Some(c) => Some(node.queue::<ImuT>(c)?),
             None => None,
+        };
+        let odometry = match (&cfg.goal, cfg.robot) {
+            (
+                Some(GoalConfig {
+                    odometry_channel: Some(c),
+                    ..
+                }),
+                Robot::Archie,
+            ) => Some(node.queue::<OdometryT>(c)?),
+            _ => None,
         };
         node.set_health(
             NodeStatusT::STATE_STARTING,
@@ -421,6 +464,9 @@ impl GaitApp {
             requests: 0,
             imu,
             attitude: None,
+            odometry,
+            anchor: Anchor::default(),
+            odometry_dropped: 0,
             t0: Instant::now(),
             utime0: now_utime(),
             phase: Phase::Waiting(0.0),
@@ -553,6 +599,44 @@ impl GaitApp {
         }
     }
 
+    /// Takes the pelvis's measured poses: each moves the anchor a share of the way to where
+    /// it puts the pattern's pelvis at that time.
+    fn take_odometry(&mut self) {
+        let Some((_, rx)) = &self.odometry else {
+            return;
+        };
+        let Some(cfg) = &self.cfg.goal else {
+            return;
+        };
+        let Body::Archie { walker, joints, .. } = &self.body else {
+            return;
+        };
+        let start = walker.pattern().timeline.start;
+        for m in rx.try_iter() {
+            let t = (m.header.utime - self.utime0) as f64 * 1e-6;
+            // Before the pattern now played, or not made of numbers: nothing to compare.
+            let (Some(gait), Some(world)) = (pelvis_at(joints, start, t), odometry_pelvis(&m))
+            else {
+                continue;
+            };
+            let est = Anchor::between(world, gait);
+            let off = est.distance(&self.anchor, [gait[0], gait[1]]);
+            if off > cfg.odometry_max_jump {
+                self.odometry_dropped += 1;
+                if self.odometry_dropped.is_power_of_two() {
+                    tracing::warn!(
+                        "the odometry puts the pelvis {off:.3} m from where the gait has it \
+                         (at most {} m believed): dropped ({} so far)",
+                        cfg.odometry_max_jump,
+                        self.odometry_dropped
+                    );
+                }
+                continue;
+            }
+            self.anchor = self.anchor.toward(&est, cfg.odometry_gain);
+        }
+    }
+
     fn take_imu(&mut self) {
         if let Some((_, rx)) = &self.imu {
             while let Ok(m) = rx.try_recv() {
@@ -646,8 +730,11 @@ impl GaitApp {
         }
     }
 
+    /// Stops for good: nothing more goes to the bridges (a trajectory bridge decelerates its
+    /// joints to a stop at the end of what it was sent), and the status says why.
     fn fault(&mut self, node: &Node, why: String) {
         tracing::error!("{why}");
+        self.quiet = true;
         node.set_health(NodeStatusT::STATE_FAULT, why.clone());
         self.set_status(TrajectoryStatusT::STATE_STOPPED, why.clone());
         self.phase = Phase::Fault(why);
@@ -806,7 +893,13 @@ impl GaitApp {
         let mut taken = 0;
         while let Ok(msg) = plans.try_recv() {
             let plan = match plan_of(&msg) {
-                Ok(p) => p,
+                // The world's footsteps in the gait's frame.
+                Ok(mut p) => {
+                    for s in &mut p.steps {
+                        s.place = self.anchor.to_gait(s.place);
+                    }
+                    p
+                }
                 Err(why) => {
                     refusals.push(why);
                     continue;
@@ -903,6 +996,8 @@ impl GaitApp {
         }
         let counter = walker.counter(t);
         let (feet, next) = feet_after(&walker.pattern().timeline, counter.number);
+        // Where they stand in the world.
+        let feet = feet.map(|f| self.anchor.to_world(f));
         if at_goal(&feet, &p.goal, cfg) {
             // There once the step under way lands: no more requests; the walk's last plan
             // ends it standing (its remaining steps in place are the planner's padding).
@@ -1029,7 +1124,25 @@ impl Tick for GaitApp {
             g.take_states(now);
         }
         self.take_imu();
+        self.take_odometry();
         self.take_commands(node, t);
+        // A bridge that stopped its drives on its own (not on a stop the gait obeys too)
+        // stops the walk: nothing more goes out.
+        let stopping = match &self.body {
+            Body::Archie { walker, .. } => walker.is_stopped(),
+            Body::Hexapod { .. } => false,
+        };
+        let stopped: Vec<String> = self
+            .groups
+            .iter_mut()
+            .filter_map(|g| g.bridge_stopped())
+            .collect();
+        let stopped = stopped.into_iter().next();
+        if let Some(why) = stopped {
+            if !stopping && matches!(self.phase, Phase::Ready | Phase::Posing(_)) {
+                self.fault(node, why);
+            }
+        }
         match self.phase.clone() {
             Phase::Waiting(since) => self.wait(node, t, now, since),
             Phase::Posing(until) if t >= until => self.ready(node, t),

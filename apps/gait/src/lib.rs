@@ -48,6 +48,11 @@ pub struct Channels {
     pub command: Option<String>,
     /// The joints' measured states (stride.joint_state_t).
     pub state: Option<String>,
+    /// The trajectory bridge's status (stride.trajectory_status_t): a bridge that stopped its
+    /// drives (an emergency, a stream run dry, a system stop) stops the walk, and the gait
+    /// reports it and sends nothing more.
+    #[serde(default)]
+    pub status: Option<String>,
 }
 
 /// The pattern's parameters in the gait's file (the COM height and the sole come from the
@@ -524,6 +529,60 @@ mod tests {
     use super::*;
     use stride_lcmtypes::stride::FootstepT;
 
+    #[test]
+    fn an_anchor_maps_places_both_ways_and_puts_the_pelvis_where_it_was_measured() {
+        let a = Anchor {
+            x: 0.3,
+            y: -0.2,
+            yaw: 3.0,
+        };
+        let p = [1.0, 2.0, 0.05, -3.0];
+        let back = a.to_gait(a.to_world(p));
+        for k in 0..4 {
+            assert!((back[k] - p[k]).abs() < 1e-12, "{back:?}");
+        }
+        // The heading wraps: 3 + (-3) is 0, 3 + 0.5 is past π.
+        assert!(a.to_world(p)[3].abs() < 1e-12);
+        let world = [4.0, 1.0, 3.1];
+        let gait = [3.8, 1.1, -3.1];
+        let b = Anchor::between(world, gait);
+        let w = b.to_world([gait[0], gait[1], 0.0, gait[2]]);
+        assert!((w[0] - 4.0).abs() < 1e-12 && (w[1] - 1.0).abs() < 1e-12);
+        assert!((w[3] - 3.1).abs() < 1e-12, "{w:?}");
+        // Halfway across ±π goes the short way round.
+        let c = Anchor::default().toward(
+            &Anchor {
+                yaw: 3.1,
+                ..Default::default()
+            },
+            0.5,
+        );
+        assert!((c.yaw - 1.55).abs() < 1e-12);
+        let d = Anchor {
+            yaw: 3.1,
+            ..Default::default()
+        }
+        .toward(
+            &Anchor {
+                yaw: -3.1,
+                ..Default::default()
+            },
+            0.5,
+        );
+        assert!((d.yaw.abs() - std::f64::consts::PI).abs() < 1e-12, "{d:?}");
+        assert!(
+            Anchor::default().distance(
+                &Anchor {
+                    x: 0.3,
+                    y: 0.4,
+                    yaw: 0.0
+                },
+                [5.0, 5.0]
+            ) - 0.5
+                < 1e-12
+        );
+    }
+
     fn msg(echo: i64, n: usize) -> FootstepPlanT {
         FootstepPlanT {
             step_number: echo,
@@ -664,8 +723,26 @@ pub struct GoalConfig {
     /// Extra planner parameters (e.g. max_step, the walker's max_length).
     #[serde(default)]
     pub params: BTreeMap<String, f64>,
+    /// Where the pelvis really is (stride.odometry_t, world frame: a state estimator, or the
+    /// simulated world): the gait's frame is anchored to it, so that a request starts from
+    /// the feet where they stand and a plan is walked where the planner put it. None: the
+    /// gait's own frame is taken for the world.
+    #[serde(default)]
+    pub odometry_channel: Option<String>,
+    /// The share of each estimate's difference from the anchor taken (its noise averaged).
+    #[serde(default = "odometry_gain")]
+    pub odometry_gain: f64,
+    /// An estimate further than this from the anchor (m) is not believed: dropped, counted.
+    #[serde(default = "odometry_max_jump")]
+    pub odometry_max_jump: f64,
 }
 
+fn odometry_gain() -> f64 {
+    0.05
+}
+fn odometry_max_jump() -> f64 {
+    0.3
+}
 fn goal_channel() -> String {
     "WALK_GOAL".into()
 }
@@ -693,6 +770,11 @@ impl GoalConfig {
         if !(ok(self.tolerance) && ok(self.yaw_tolerance) && ok(self.resend)) {
             return Err("goal: tolerance, yaw_tolerance and resend must be positive".into());
         }
+        if !(ok(self.odometry_gain) && self.odometry_gain <= 1.0 && ok(self.odometry_max_jump)) {
+            return Err(
+                "goal: odometry_gain must be in (0, 1] and odometry_max_jump positive".into(),
+            );
+        }
         if let Some((k, v)) = self.params.iter().find(|(_, v)| !v.is_finite()) {
             return Err(format!("goal.params.{k} = {v} is not a number"));
         }
@@ -710,6 +792,111 @@ impl GoalConfig {
             )),
         }
     }
+}
+
+/// An angle in (−π, π].
+fn wrap(a: f64) -> f64 {
+    let w = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+    if w == -std::f64::consts::PI {
+        std::f64::consts::PI
+    } else {
+        w
+    }
+}
+
+/// Where the gait's frame lies in the world (the planner's frame): the planar transform from
+/// gait to world, its origin (m) and heading (rad). The gait walks its patterns in its own
+/// frame; where the body really goes drifts from it (the drives' lag at each touch-down), and
+/// measured poses of the pelvis correct the anchor.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Anchor {
+    /// The gait frame's origin in the world, m.
+    pub x: f64,
+    /// The gait frame's origin in the world, m.
+    pub y: f64,
+    /// Its heading in the world, rad.
+    pub yaw: f64,
+}
+
+impl Anchor {
+    /// A place of the gait's frame in the world.
+    pub fn to_world(&self, p: Place) -> Place {
+        let (s, c) = self.yaw.sin_cos();
+        [
+            self.x + c * p[0] - s * p[1],
+            self.y + s * p[0] + c * p[1],
+            p[2],
+            wrap(p[3] + self.yaw),
+        ]
+    }
+
+    /// A place of the world in the gait's frame.
+    pub fn to_gait(&self, p: Place) -> Place {
+        let (s, c) = self.yaw.sin_cos();
+        let (dx, dy) = (p[0] - self.x, p[1] - self.y);
+        [
+            c * dx + s * dy,
+            -s * dx + c * dy,
+            p[2],
+            wrap(p[3] - self.yaw),
+        ]
+    }
+
+    /// The anchor that puts the pelvis at `gait` (x, y, heading in the gait's frame) where it
+    /// was measured, `world`.
+    pub fn between(world: [f64; 3], gait: [f64; 3]) -> Anchor {
+        let yaw = wrap(world[2] - gait[2]);
+        let (s, c) = yaw.sin_cos();
+        Anchor {
+            x: world[0] - (c * gait[0] - s * gait[1]),
+            y: world[1] - (s * gait[0] + c * gait[1]),
+            yaw,
+        }
+    }
+
+    /// `gain` of the way to `to` (the heading on the circle).
+    pub fn toward(&self, to: &Anchor, gain: f64) -> Anchor {
+        Anchor {
+            x: self.x + gain * (to.x - self.x),
+            y: self.y + gain * (to.y - self.y),
+            yaw: wrap(self.yaw + gain * wrap(to.yaw - self.yaw)),
+        }
+    }
+
+    /// How far apart two anchors put a point of the gait's frame at `at`, m.
+    pub fn distance(&self, other: &Anchor, at: [f64; 2]) -> f64 {
+        let (a, b) = (
+            self.to_world([at[0], at[1], 0.0, 0.0]),
+            other.to_world([at[0], at[1], 0.0, 0.0]),
+        );
+        (a[0] - b[0]).hypot(a[1] - b[1])
+    }
+}
+
+/// The pelvis of a joint plan that starts at `start` (walker time, s) at walker time `t`:
+/// x, y and heading, between its rows; None outside the plan.
+pub fn pelvis_at(plan: &stride_gait::archie::JointPlan, start: f64, t: f64) -> Option<[f64; 3]> {
+    let i = plan.times.partition_point(|&x| start + x <= t);
+    if i == 0 || i >= plan.times.len() {
+        return None;
+    }
+    let (t0, t1) = (start + plan.times[i - 1], start + plan.times[i]);
+    let s = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+    let planar = |p: &stride_kinematics::math::Pose| [p.p[0], p.p[1], p.r[1][0].atan2(p.r[0][0])];
+    let (a, b) = (planar(&plan.pelvis[i - 1]), planar(&plan.pelvis[i]));
+    Some([
+        a[0] + s * (b[0] - a[0]),
+        a[1] + s * (b[1] - a[1]),
+        wrap(a[2] + s * wrap(b[2] - a[2])),
+    ])
+}
+
+/// The pelvis of an odometry message: x, y and heading (None unless finite).
+pub fn odometry_pelvis(m: &stride_lcmtypes::stride::OdometryT) -> Option<[f64; 3]> {
+    let [w, x, y, z] = m.pose.orientation;
+    let yaw = (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z));
+    let p = [m.pose.position[0], m.pose.position[1], yaw];
+    p.iter().all(|v| v.is_finite()).then_some(p)
 }
 
 /// A goal to walk to.

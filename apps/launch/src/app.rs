@@ -356,6 +356,9 @@ fn walk(
             if sent_at.is_some() && m.reason == reached_text {
                 w.reached = true;
             }
+            if sent_at.is_some() && m.state == TrajectoryStatusT::STATE_STOPPED {
+                w.stopped = Some(m.reason.clone());
+            }
             w.gait = Some(m);
         }
         // The goal: once the gait is heard, and again while no plan is taken for 3 s.
@@ -399,7 +402,7 @@ fn walk(
                 w.tracking.measured(&m);
             }
         }
-        if w.reached {
+        if w.reached || w.stopped.is_some() {
             // The last reports.
             let until = Instant::now() + Duration::from_millis(300);
             while Instant::now() < until {

@@ -112,6 +112,8 @@ pub struct Walk {
     pub tracking: Tracking,
     /// CPU per app: sum of shares and samples.
     pub cpu: BTreeMap<String, (f64, u32)>,
+    /// Why the gait stopped the walk, if it did.
+    pub stopped: Option<String>,
 }
 
 impl Walk {
@@ -150,6 +152,10 @@ impl Walk {
                 "NOT reached"
             },
         ));
+        if let Some(why) = &self.stopped {
+            ok = false;
+            lines.push(format!("the gait stopped the walk: {why}"));
+        }
         // Where the robot stands: the centre of its feet (the simulated world's truth).
         let at = match (&self.report, &self.pose) {
             (Some(r), _) => Some((

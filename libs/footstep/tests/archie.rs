@@ -7,7 +7,7 @@ use stride_footstep::archie::steps::{self, footprint_hits, StepParams};
 use stride_footstep::archie::{
     avoidance_waypoints, child_id, exact_length, headings, inflate, plan_exact, plan_tree, Params,
 };
-use stride_footstep::geom::{v2, Circle};
+use stride_footstep::geom::{v2, Circle, V2};
 use stride_footstep::plan::Status;
 use stride_footstep::scene::Scene;
 
@@ -190,6 +190,55 @@ fn case_9_detour_is_gone_and_ends_are_checked() {
     assert_eq!(
         plan_tree(v2(0.0, 0.0), v2(5.0, 0.0), &ring, &p).0.status,
         Status::NoPath
+    );
+}
+
+#[test]
+fn a_start_a_little_inside_a_margin_is_planned_from() {
+    // The finding: walking Archie's case 7 the feet drifted a few millimetres into the margin
+    // of an obstacle the path had hugged; the improved planner refused every request from
+    // there ("the start is inside an inflated obstacle") and the robot stepped in place for
+    // 10 s. A start at most start_slack inside one margin now narrows that margin to it for
+    // the plan, and the path goes on along it (no step back out, which, replanned at every
+    // step, rocked the robot back and forth); deeper, and in the thesis's mode, it is refused.
+    let p = Params::improved();
+    let obstacle = [Circle {
+        c: v2(1.0, 0.0),
+        r: 0.2,
+    }];
+    let rim = 0.2 + p.inflation;
+    let goal = v2(3.0, 0.0);
+    // Behind the obstacle's centre and to its right, 3 cm inside the margin.
+    let at = |depth: f64| v2(1.0, 0.0) + V2::polar((-110f64).to_radians()) * (rim - depth);
+    let start = at(0.03);
+    let plan = plan_exact(start, goal, &obstacle, &p);
+    assert_eq!(plan.status, Status::Ok, "{}", plan.detail);
+    assert_eq!(plan.path[0], start);
+    // Forward from the start, never back, never nearer the obstacle than the start.
+    let inner = rim - 0.03 - 1e-6;
+    assert!(
+        plan.path.windows(2).all(|w| w[1].x >= w[0].x - 1e-9),
+        "{:?}",
+        plan.path
+    );
+    assert!(
+        plan.path
+            .iter()
+            .all(|q| q.dist(v2(1.0, 0.0)) >= inner - 1e-5),
+        "{:?}",
+        plan.path
+    );
+    // Deeper than the slack: refused.
+    let deep = plan_exact(at(0.06), goal, &obstacle, &p);
+    assert_eq!(deep.status, Status::StartInCollision);
+    // The thesis's tree has no slack.
+    let faithful = Params {
+        inflation: p.inflation,
+        ..Params::default()
+    };
+    assert_eq!(
+        plan_tree(start, goal, &obstacle, &faithful).0.status,
+        Status::StartInCollision
     );
 }
 

@@ -48,6 +48,11 @@ pub struct Params {
     pub budget: Duration,
     /// Largest angle of circle a waypoint of an arc covers (improved mode), rad.
     pub arc_step: f64,
+    /// How far inside one inflated obstacle a start may lie and still be planned from
+    /// (improved mode), m: that obstacle's margin is narrowed to the start for the plan. A
+    /// walking robot's feet drift a few millimetres into the margin that a path hugging it
+    /// left them at; refused, it would step in place there.
+    pub start_slack: f64,
 }
 
 impl Default for Params {
@@ -58,6 +63,7 @@ impl Default for Params {
             max_depth: 16,
             budget: Duration::from_millis(100),
             arc_step: 10f64.to_radians(),
+            start_slack: 0.0,
         }
     }
 }
@@ -71,6 +77,7 @@ impl Params {
     pub fn improved() -> Params {
         Params {
             inflation: 0.215,
+            start_slack: 0.05,
             ..Params::default()
         }
     }
@@ -128,6 +135,28 @@ fn check_ends(start: V2, goal: V2, circles: &[Circle], stats: Stats) -> Result<(
         )));
     }
     Ok(())
+}
+
+/// A start at most `slack` inside one inflated circle (and in no other): that circle with
+/// its margin narrowed to pass just inside the start, so that a path may leave from there
+/// along it. None for a start outside every circle, deeper inside, or in two.
+pub fn narrowed_for(start: V2, circles: &[Circle], slack: f64) -> Option<(usize, Circle)> {
+    let mut inside = circles
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.contains(start));
+    let (i, c) = inside.next()?;
+    let d = start.dist(c.c);
+    if inside.next().is_some() || c.r - d > slack {
+        return None;
+    }
+    Some((
+        i,
+        Circle {
+            c: c.c,
+            r: d - 2.0 * TOUCH,
+        },
+    ))
 }
 
 /// The obstacles grown by the inflation.
@@ -498,8 +527,12 @@ fn tangent_graph_path(
 /// length as returned (waypoints outside the circles); [`exact_length`] gives the optimum.
 pub fn plan_exact(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> Plan {
     let t0 = Instant::now();
-    let circles = distinct(&inflate(obstacles, p.inflation));
+    let mut circles = distinct(&inflate(obstacles, p.inflation));
     let mut stats = Stats::default();
+    // A start a little inside one margin: that margin narrowed to it for this plan.
+    if let Some((i, c)) = narrowed_for(start, &circles, p.start_slack) {
+        circles[i] = c;
+    }
     if let Err(plan) = check_ends(start, goal, &circles, stats) {
         return *plan;
     }
