@@ -23,7 +23,8 @@ use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
 
 use crate::{
     at_goal, command_msg, counter_msg, feet_after, goal_of, min_jerk, odometry_pelvis, pelvis_at,
-    plan_of, request_msg, trajectory_msg, Anchor, GaitConfig, Goal, GoalConfig, Robot, ROW_PERIOD,
+    plan_of, request_msg, trajectory_msg, Anchor, BridgeWatch, GaitConfig, Goal, GoalConfig, Robot,
+    ROW_PERIOD,
 };
 
 /// The walking controller.
@@ -81,27 +82,19 @@ struct Group {
     /// The last measured position of each joint, and when.
     measured: BTreeMap<String, (f64, Instant)>,
     stamper: Stamper,
-    /// The trajectory bridge's status, and its state last heard.
+    /// The trajectory bridge's status, and what it last said.
     bridge: Option<(lcm::Subscription, Receiver<TrajectoryStatusT>)>,
-    bridge_state: Option<i8>,
+    bridge_watch: BridgeWatch,
 }
 
 impl Group {
     /// Why the group's bridge stopped its drives, if its status turned to stopped since the
-    /// last call (a bridge stopped goes on saying so every second until it is re-armed).
+    /// last call.
     fn bridge_stopped(&mut self) -> Option<String> {
         let (_, rx) = self.bridge.as_ref()?;
         let mut why = None;
         for m in rx.try_iter() {
-            if m.state == TrajectoryStatusT::STATE_STOPPED
-                && self.bridge_state != Some(TrajectoryStatusT::STATE_STOPPED)
-            {
-                why = Some(format!(
-                    "the {} bridge ({}) stopped its drives: {}",
-                    self.name, m.node, m.reason
-                ));
-            }
-            self.bridge_state = Some(m.state);
+            why = self.bridge_watch.on_status(&self.name, &m).or(why);
         }
         why
     }
@@ -398,7 +391,7 @@ impl GaitApp {
                         Some(c) => Some(node.queue::<TrajectoryStatusT>(c)?),
                         None => None,
                     },
-                    bridge_state: None,
+                    bridge_watch: BridgeWatch::default(),
                     states: match &ch.state {
                         Some(c) => Some(node.queue::<JointStateT>(c)?),
                         None => None,

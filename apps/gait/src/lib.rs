@@ -20,7 +20,7 @@ use stride_gait::walker::{Plan, StepCounter, WalkerConfig};
 use stride_kinematics::archie::ArchieConfig;
 use stride_lcmtypes::stride::{
     FootT, FootstepPlanRequestT, FootstepPlanT, HeaderT, ImuT, JointCommandT, JointTrajectoryT,
-    PoseStampedT, StepCounterT,
+    PoseStampedT, StepCounterT, TrajectoryStatusT,
 };
 
 /// The period of Archie's joint rows, s (every other 5 ms sample of the pattern).
@@ -530,6 +530,40 @@ mod tests {
     use stride_lcmtypes::stride::FootstepT;
 
     #[test]
+    fn a_bridge_that_stops_its_drives_is_told_once_at_the_turn() {
+        // The finding: a leg's stream ran dry under load and its bridge quick-stopped the
+        // drives; the gait walked on. It now hears the turn to stopped (not the repeats of a
+        // bridge still stopped, nor a stop it was told of before a resume re-armed it).
+        let status = |state: i8| TrajectoryStatusT {
+            node: "left-leg".into(),
+            state,
+            reason: "left_knee ran out of rows while moving".into(),
+            ..Default::default()
+        };
+        let mut w = BridgeWatch::default();
+        assert_eq!(
+            w.on_status("left", &status(TrajectoryStatusT::STATE_MOVING)),
+            None
+        );
+        let why = w.on_status("left", &status(TrajectoryStatusT::STATE_STOPPED));
+        assert_eq!(
+            why.as_deref(),
+            Some("the left bridge (left-leg) stopped its drives: left_knee ran out of rows while moving")
+        );
+        assert_eq!(
+            w.on_status("left", &status(TrajectoryStatusT::STATE_STOPPED)),
+            None
+        );
+        assert_eq!(
+            w.on_status("left", &status(TrajectoryStatusT::STATE_MOVING)),
+            None
+        );
+        assert!(w
+            .on_status("left", &status(TrajectoryStatusT::STATE_STOPPED))
+            .is_some());
+    }
+
+    #[test]
     fn an_anchor_maps_places_both_ways_and_puts_the_pelvis_where_it_was_measured() {
         let a = Anchor {
             x: 0.3,
@@ -897,6 +931,29 @@ pub fn odometry_pelvis(m: &stride_lcmtypes::stride::OdometryT) -> Option<[f64; 3
     let yaw = (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z));
     let p = [m.pose.position[0], m.pose.position[1], yaw];
     p.iter().all(|v| v.is_finite()).then_some(p)
+}
+
+/// What a trajectory bridge's status last said: a bridge stopped goes on saying so every
+/// second until a trajectory re-arms it, so only the turn to stopped counts.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct BridgeWatch {
+    last: Option<i8>,
+}
+
+impl BridgeWatch {
+    /// Takes the status of the bridge of joint group `group`: why it stopped its drives, when
+    /// this status is the turn to stopped.
+    pub fn on_status(&mut self, group: &str, m: &TrajectoryStatusT) -> Option<String> {
+        let stopped = TrajectoryStatusT::STATE_STOPPED;
+        let turned = m.state == stopped && self.last != Some(stopped);
+        self.last = Some(m.state);
+        turned.then(|| {
+            format!(
+                "the {group} bridge ({}) stopped its drives: {}",
+                m.node, m.reason
+            )
+        })
+    }
 }
 
 /// A goal to walk to.
