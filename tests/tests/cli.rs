@@ -250,3 +250,18 @@ fn the_arduino_link_says_on_its_console_when_its_port_is_missing() {
         "{err}"
     );
 }
+
+#[test]
+fn stride_report_says_in_one_line_what_it_cannot_read() {
+    let out = Command::new(bin("stride-report"))
+        .arg("/nonexistent/walk.lcmlog")
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    let line = assert_one_line_error("stride-report", &(out.status.code(), String::new(), err));
+    assert!(
+        line.contains("cannot read /nonexistent/walk.lcmlog"),
+        "{line}"
+    );
+}
