@@ -35,8 +35,12 @@ pub struct BodyConfig {
     /// The COM's velocity and acceleration (and the pelvis's, for the IMU) are fitted over
     /// this window, s; they, and the ZMP, are those of its middle.
     pub window: f64,
-    /// The ZMP this far outside the support polygon is a fall, m.
+    /// The ZMP this far outside the support polygon is a fall, m ...
     pub fall_margin: f64,
+    /// ... once it has stayed out this long, s (0: at once). The support polygon comes from
+    /// the soles' heights, and a sole a few millimetres either side of the contact height
+    /// for a sample or two makes the ZMP jump out of it and back, where no robot topples.
+    pub fall_time: f64,
     /// A joint this close to its position limit is at it, rad.
     pub limit_margin: f64,
     /// Points checked along each shank (knee to ankle) for collisions.
@@ -52,6 +56,7 @@ impl Default for BodyConfig {
             g: 9.80665,
             window: 0.1,
             fall_margin: 0.0,
+            fall_time: 0.0,
             limit_margin: 0.001,
             shank_points: 5,
         }
@@ -70,6 +75,8 @@ impl BodyConfig {
             && self.g > 0.0
             && self.window > 0.0
             && self.fall_margin.is_finite()
+            && self.fall_time.is_finite()
+            && self.fall_time >= 0.0
             && self.shank_points >= 2;
         if ok {
             Ok(())
@@ -194,6 +201,8 @@ pub struct Body {
     colliding: Vec<(String, usize)>,
     at_limit: Vec<String>,
     falling: bool,
+    /// Since when the ZMP has been beyond the fall margin, s.
+    out_since: Option<f64>,
     counts: Counts,
     /// The last state.
     pub state: State,
@@ -313,6 +322,7 @@ impl Body {
             colliding: Vec::new(),
             at_limit: Vec::new(),
             falling: false,
+            out_since: None,
             counts: Counts::default(),
             state: State {
                 t: f64::NAN,
@@ -482,14 +492,19 @@ impl Body {
         let fitted = self.fit();
         if let Some(f) = &fitted {
             let out = f.margin < -self.cfg.fall_margin;
-            if out && !self.falling {
+            // A fall: out for fall_time on end (the fitted ZMP of the middle of the window).
+            let since = *self.out_since.get_or_insert(f.t);
+            if !out {
+                self.out_since = None;
+                self.falling = false;
+            } else if !self.falling && f.t - since >= self.cfg.fall_time {
+                self.falling = true;
                 self.counts.falls += 1;
                 events.push(Event::Fall {
                     zmp: f.zmp,
                     margin: f.margin,
                 });
             }
-            self.falling = out;
         }
         self.state = State {
             t,
@@ -757,6 +772,38 @@ mod tests {
             contact.push(body.state.contact[0]);
         }
         assert_eq!(contact, [true, true, false, false, true]);
+    }
+
+    #[test]
+    fn a_fall_is_the_zmp_out_for_the_fall_time_not_a_flicker_of_the_support() {
+        // The pelvis between the feet: inside the double support, 5 cm beside the right sole.
+        // The left sole rises 1 cm for `up` samples and comes down again: the support is the
+        // right sole alone meanwhile, and the ZMP beside it.
+        let r = robot();
+        let w = world("");
+        let z = 0.6;
+        let falls = |fall_time: f64, up: usize| {
+            let cfg = BodyConfig {
+                fall_time,
+                ..BodyConfig::default()
+            };
+            let q = |h: f64| joints(&r, [0.0, 0.0, z], [[0.0, 0.1, h], [0.0, -0.1, 0.0]]);
+            let mut body = Body::new(r.clone(), cfg, [0.0, 0.0, 0.0], q(0.0), &w);
+            let mut t = 0.0;
+            for k in 0..(30 + up + 30) {
+                let h = if (30..30 + up).contains(&k) {
+                    0.01
+                } else {
+                    0.0
+                };
+                body.step(t, &q(h), &w);
+                t += 0.01;
+            }
+            body.counts().falls
+        };
+        assert_eq!(falls(0.0, 3), 1, "at once, the flicker is a fall");
+        assert_eq!(falls(0.1, 3), 0, "30 ms on one foot");
+        assert_eq!(falls(0.1, 40), 1, "0.4 s on one foot");
     }
 
     #[test]
