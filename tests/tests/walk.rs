@@ -185,3 +185,48 @@ fn kaists_b7_a_box_that_appears_a_metre_ahead_is_walked_around() {
     let clearance = number_after(&summary, "from an obstacle");
     assert!(clearance > 0.0 && clearance < 0.5, "{summary}");
 }
+
+#[test]
+#[ignore = "multicast: scripts/test runs it in a private network namespace"]
+fn the_hexapod_walks_its_tripod_gait_through_the_dynamixel_bridge() {
+    // `stride launch hexapod --sim` (the bridge's 18 simulated AX-12A servos, the gait) and
+    // `stride step 0.2`: the walk is taken, ends, and the servos follow their set-points.
+    require_sandbox();
+    let _one = ONE_WALK.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let url = udpm_url(7815);
+    let mut profile: toml::Table =
+        toml::from_str(&std::fs::read_to_string(repo("config/launch/hexapod.toml")).unwrap())
+            .unwrap();
+    profile.insert("lcm_url".into(), url.clone().into());
+    for app in profile["app"].as_array_mut().unwrap() {
+        let app = app.as_table_mut().unwrap();
+        let config = repo("config/launch").join(app["config"].as_str().unwrap());
+        app.insert(
+            "config".into(),
+            config.to_string_lossy().into_owned().into(),
+        );
+        app.insert("args".into(), vec!["--log-level", "warn"].into());
+    }
+    let path = dir.path().join("hexapod.toml");
+    std::fs::write(&path, toml::to_string(&profile).unwrap()).unwrap();
+    let launcher = launch(&path, &url, dir.path());
+    let out = on_bus("stride", &url)
+        .args(["step", "0.2", "--timeout", "60"])
+        .output()
+        .unwrap();
+    let summary = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (st, log) = launcher.interrupt();
+    assert!(out.status.success(), "{summary}\n{log}");
+    assert!(
+        summary.starts_with("the walk of 0.2 m (tripod gait) played to its end"),
+        "{summary}"
+    );
+    let samples = number_after(&summary, "rad over");
+    assert!(samples > 100.0, "{summary}");
+    assert!(st.success(), "the launcher's shutdown: {log}");
+}

@@ -1143,6 +1143,13 @@ impl Tick for GaitApp {
             Phase::Ready => self.walk(node, t, now),
             Phase::Fault(_) => {}
         }
+        // The hexapod's walk is over once its rows are.
+        if matches!(self.body, Body::Hexapod { .. })
+            && self.status.state == TrajectoryStatusT::STATE_MOVING
+            && t >= self.rows.end()
+        {
+            self.set_status(TrajectoryStatusT::STATE_IDLE, "walk done");
+        }
         self.pursue(node, t)?;
         self.stream(node, t)?;
         self.set_points(node, t)?;

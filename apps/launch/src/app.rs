@@ -105,6 +105,28 @@ enum Command {
         )]
         states: Vec<String>,
     },
+    /// Walk a distance straight ahead with a gait that takes walk commands (the hexapod's
+    /// stride-gait), and follow it: prints a summary (the walk taken, its time, the servos'
+    /// tracking of their set-points) and exits non-zero when the gait refuses or stops the
+    /// walk, or it does not end in time.
+    Step {
+        /// The distance, m.
+        #[arg(allow_hyphen_values = true)]
+        distance: f64,
+        /// The gait: "tripod" (three legs swing at a time; flat ground) or "wave" (one leg at
+        /// a time).
+        #[arg(long, default_value = "tripod")]
+        gait: String,
+        /// The longest the walk may take, s.
+        #[arg(long, default_value_t = 60.0, value_name = "S")]
+        timeout: f64,
+        /// The set-points compared with the measured positions.
+        #[arg(long, default_value = "HEXAPOD_JOINT_COMMAND")]
+        commands: String,
+        /// The measured joint states.
+        #[arg(long, default_value = "HEXAPOD_JOINT_STATE")]
+        states: String,
+    },
     /// Stop walking: the gait brings the robot to a stand and takes no plan until `stride
     /// resume`.
     Stop {
@@ -239,6 +261,13 @@ pub fn run(l: Launch<Cli, NoConfig>) -> anyhow::Result<ExitCode> {
             trajectories,
             states,
         ),
+        Command::Step {
+            distance,
+            gait,
+            timeout,
+            commands,
+            states,
+        } => step(&l, *distance, gait, *timeout, commands, states),
         Command::Stop { reason } => {
             command(&l, &[GAIT_CHANNEL], GaitCommandT::COMMAND_STOP, reason)
         }
@@ -287,6 +316,137 @@ pub fn goal_msg(goal: &str) -> anyhow::Result<PoseStampedT> {
             position: [v[0], v[1], 0.0],
             orientation: [(yaw / 2.0).cos(), 0.0, 0.0, (yaw / 2.0).sin()],
         },
+    })
+}
+
+/// `stride step`: a walk command, followed to its end.
+fn step(
+    l: &Launch<Cli, NoConfig>,
+    distance: f64,
+    gait: &str,
+    timeout: f64,
+    commands: &str,
+    states: &str,
+) -> anyhow::Result<ExitCode> {
+    use crate::walk::Tracking;
+    use stride_lcmtypes::stride::{JointCommandT, JointStateT, TrajectoryStatusT};
+    let gait_id = match gait {
+        "tripod" => GaitCommandT::GAIT_TRIPOD,
+        "wave" => GaitCommandT::GAIT_WAVE,
+        other => anyhow::bail!("--gait {other:?}: \"tripod\" or \"wave\""),
+    };
+    if !(distance.is_finite() && timeout.is_finite() && timeout > 0.0) {
+        anyhow::bail!("the distance must be a number and --timeout positive");
+    }
+    let node = l.start_as("stride-step")?;
+    let (s1, status) = node.queue::<TrajectoryStatusT>("GAIT_STATUS")?;
+    let (s2, sent) = node.queue::<JointCommandT>(commands)?;
+    let (s3, measured) = node.queue::<JointStateT>(states)?;
+    let (s4, health) =
+        node.queue::<stride_lcmtypes::stride::NodeStatusT>(stride_node::STATUS_CHANNEL)?;
+    for s in [&s1, &s2, &s3, &s4] {
+        s.set_queue_capacity(10_000)?;
+    }
+    // The gait takes a walk once it stands ready: its heartbeat says RUNNING.
+    let mut ready = false;
+    let started = Instant::now();
+    let deadline = started + Duration::from_secs_f64(timeout);
+    let mut tracking = Tracking::default();
+    let mut last: Option<TrajectoryStatusT> = None;
+    let mut accepted0 = None::<i64>;
+    let mut refused0 = None::<i64>;
+    let mut sent_at = None::<Instant>;
+    let mut moving_since = None::<Instant>;
+    let mut verdict: Option<Result<String, String>> = None;
+    let mut refusal: Option<String> = None;
+    while verdict.is_none() && Instant::now() < deadline {
+        node.lcm().handle_timeout(Duration::from_millis(20))?;
+        for m in status.try_iter() {
+            accepted0.get_or_insert(m.accepted);
+            refused0.get_or_insert(m.refused);
+            if sent_at.is_some() {
+                if Some(m.refused) > refused0 {
+                    // Not yet standing ready (it moves into its pose first), or refused for
+                    // good: asked again every second until the time is up.
+                    refused0 = Some(m.refused);
+                    refusal = Some(m.last_refusal.clone());
+                    sent_at = sent_at.map(|t| t - Duration::from_secs(2));
+                } else if m.state == TrajectoryStatusT::STATE_STOPPED {
+                    verdict = Some(Err(format!("the gait stopped: {}", m.reason)));
+                } else if m.state == TrajectoryStatusT::STATE_MOVING && Some(m.accepted) > accepted0
+                {
+                    moving_since.get_or_insert_with(Instant::now);
+                } else if m.state == TrajectoryStatusT::STATE_IDLE && moving_since.is_some() {
+                    verdict = Some(Ok(m.reason.clone()));
+                }
+            }
+            last = Some(m);
+        }
+        if let Some(g) = &last {
+            ready |= health.try_iter().any(|h| {
+                h.node == g.node && h.state == stride_lcmtypes::stride::NodeStatusT::STATE_RUNNING
+            });
+        }
+        // The command once the gait stands ready, and again while it has not started to move.
+        if ready
+            && moving_since.is_none()
+            && sent_at.is_none_or(|t| t.elapsed() > Duration::from_secs(3))
+        {
+            let m = GaitCommandT {
+                header: Stamper::new("").stamp(),
+                command: GaitCommandT::COMMAND_WALK,
+                gait: gait_id,
+                distance,
+                reason: "stride step".into(),
+            };
+            node.lcm().publish(GAIT_CHANNEL, &m)?;
+            sent_at = Some(Instant::now());
+        }
+        for m in sent.try_iter() {
+            tracking.set_point(&m);
+        }
+        for m in measured.try_iter() {
+            tracking.measured(&m);
+        }
+    }
+    let secs = moving_since.map_or(0.0, |t| t.elapsed().as_secs_f64());
+    let (ok, what) = match verdict {
+        Some(Ok(_)) => (
+            true,
+            format!(
+                "the walk of {distance} m ({gait} gait) played to its end in {secs:.1} s (the \
+                 servos' tracking below; no simulated body measures the distance)"
+            ),
+        ),
+        Some(Err(why)) => (false, why),
+        None if last.is_none() => (false, "no gait heard on GAIT_STATUS".into()),
+        None if !ready => (
+            false,
+            format!("the gait was not ready to walk within {timeout} s"),
+        ),
+        None if moving_since.is_none() => (
+            false,
+            format!(
+                "the gait did not take the walk within {timeout} s{}",
+                refusal.map_or(String::new(), |r| format!(" (it said: {r})"))
+            ),
+        ),
+        None => (false, format!("the walk did not end within {timeout} s")),
+    };
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "{what}")?;
+    writeln!(
+        out,
+        "servo tracking (set-points against measured positions): max {:.4} rad ({}), rms {:.4} rad over {} samples",
+        tracking.max.0,
+        if tracking.max.1.is_empty() { "-" } else { &tracking.max.1 },
+        tracking.rms(),
+        tracking.samples
+    )?;
+    Ok(if ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
     })
 }
 

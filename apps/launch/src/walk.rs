@@ -6,14 +6,16 @@
 use std::collections::BTreeMap;
 
 use stride_lcmtypes::stride::{
-    JointStateT, JointTrajectoryT, LaunchStatusT, PoseStampedT, SimReportT, StepCounterT,
-    TrajectoryStatusT,
+    JointCommandT, JointStateT, JointTrajectoryT, LaunchStatusT, PoseStampedT, SimReportT,
+    StepCounterT, TrajectoryStatusT,
 };
 
 /// One joint's commanded positions in time (µs since the epoch, rad).
 #[derive(Debug, Default, Clone)]
 struct Rows {
     rows: Vec<(i64, f64)>,
+    /// Set-points: each holds until the next (not rows to interpolate between).
+    hold: bool,
 }
 
 /// Commanded rows of every joint, from the trajectories on the bus, and their comparison with
@@ -54,6 +56,17 @@ impl Tracking {
         }
     }
 
+    /// Takes a set-point command (a set-point bridge's, one a control period): each joint's
+    /// set-point from the command's stamp on.
+    pub fn set_point(&mut self, m: &JointCommandT) {
+        for (name, p) in m.names.iter().zip(&m.setpoints) {
+            let rows = self.joints.entry(name.clone()).or_default();
+            rows.hold = true;
+            rows.rows.retain(|&(t, _)| t < m.header.utime);
+            rows.rows.push((m.header.utime, *p));
+        }
+    }
+
     /// Compares a measurement with what was commanded at its time (linear between rows; not
     /// compared outside the rows).
     pub fn measured(&mut self, m: &JointStateT) {
@@ -63,16 +76,19 @@ impl Tracking {
             };
             let t = m.header.utime;
             let i = rows.rows.partition_point(|&(rt, _)| rt <= t);
-            if i == 0 || i >= rows.rows.len() {
+            let cmd = if rows.hold && i > 0 {
+                rows.rows[i - 1].1
+            } else if i == 0 || i >= rows.rows.len() {
                 continue;
-            }
-            let ((t0, p0), (t1, p1)) = (rows.rows[i - 1], rows.rows[i]);
-            let s = if t1 > t0 {
-                (t - t0) as f64 / (t1 - t0) as f64
             } else {
-                0.0
+                let ((t0, p0), (t1, p1)) = (rows.rows[i - 1], rows.rows[i]);
+                let s = if t1 > t0 {
+                    (t - t0) as f64 / (t1 - t0) as f64
+                } else {
+                    0.0
+                };
+                p0 + s * (p1 - p0)
             };
-            let cmd = p0 + s * (p1 - p0);
             let e = (p - cmd).abs();
             if !e.is_finite() {
                 continue;
