@@ -114,7 +114,7 @@ fn preview_ticks(rounds: usize, z_c: f64) -> String {
         "| horizon | ticks ahead | Rust, one tick (x and y) | Python/NumPy, same loop | NumPy / Rust | bar: ≤ 1 µs |\n\
          |---|---|---|---|---|---|\n",
     );
-    for horizon in [2.4, 1.6] {
+    for horizon in [PreviewConfig::default().horizon, 1.6] {
         let cfg = PreviewConfig {
             horizon,
             ..PreviewConfig::default()

@@ -334,6 +334,15 @@ impl Generator {
                 cfg.sole, cfg.min_margin
             )));
         }
+        // The next three steps in view, however long each takes.
+        if cfg.preview.horizon < 3.0 * cfg.timing.t_max - 1e-9 {
+            return Err(GaitError::Parameter(format!(
+                "preview control sees at least the next three steps: a horizon of {} s is \
+                 shorter than three of the longest ({} s)",
+                cfg.preview.horizon,
+                3.0 * cfg.timing.t_max
+            )));
+        }
         let preview = Preview::new(cfg.preview, cfg.z_c, cfg.g)?;
         let pendulum = Pendulum::new(LipmConfig {
             z_c: cfg.z_c,

@@ -36,11 +36,12 @@ pub struct PreviewConfig {
 }
 
 impl Default for PreviewConfig {
-    /// Kajita's: T = 5 ms, Q_e = 1, R = 10⁻⁶; a 2.4 s horizon (three steps of 0.8 s).
+    /// Kajita's: T = 5 ms, Q_e = 1, R = 10⁻⁶; a 6 s horizon: three steps of the longest step
+    /// time (T_max = 2 s; Kajita's 1.6 s saw two of 0.8 s).
     fn default() -> PreviewConfig {
         PreviewConfig {
             period: 0.005,
-            horizon: 2.4,
+            horizon: 6.0,
             q_e: 1.0,
             r: 1e-6,
         }

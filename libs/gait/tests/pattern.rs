@@ -25,7 +25,8 @@ fn walk(kind: Kind, n: usize, length: f64) -> (Generator, stride_gait::pattern::
 fn the_preview_controller_tracks_a_step_of_its_reference() {
     let p = Preview::new(PreviewConfig::default(), 0.6, 9.80665).unwrap();
     let n = p.horizon_ticks();
-    assert_eq!(n, 480);
+    // 6 s at 5 ms: three steps of the longest step time in view.
+    assert_eq!(n, 1200);
     // The reference steps from 0 to 0.1 m at tick 400; the cart follows, ahead of it.
     let reference: Vec<f64> = (0..2000 + n)
         .map(|k| if k < 400 { 0.0 } else { 0.1 })
@@ -45,6 +46,20 @@ fn the_preview_controller_tracks_a_step_of_its_reference() {
     assert!(p
         .run(&mut Cart::default(), &reference[..100], 2000)
         .is_err());
+}
+
+#[test]
+fn preview_control_sees_at_least_the_next_three_steps() {
+    // The bar: at least the next three steps previewed. Steps take up to T_max
+    // (2 s): a horizon shorter than three of them is refused.
+    let mut cfg = config(Kind::Preview);
+    assert!(cfg.preview.horizon >= 3.0 * cfg.timing.t_max);
+    cfg.preview.horizon = 2.4;
+    match Generator::new(cfg) {
+        Err(GaitError::Parameter(m)) => assert!(m.contains("three steps"), "{m}"),
+        Err(e) => panic!("{e}"),
+        Ok(_) => panic!("a 2.4 s horizon taken with steps of up to 2 s"),
+    }
 }
 
 #[test]
