@@ -32,33 +32,37 @@ fn setup(dir: &Path, url: &str, scene: &str, sim_extra: &str) -> PathBuf {
     let extra: toml::Table = toml::from_str(sim_extra).unwrap();
     sim.extend(extra);
     std::fs::write(dir.join("config/sim.toml"), toml::to_string(&sim).unwrap()).unwrap();
-    let mut profile: toml::Table =
-        toml::from_str(&std::fs::read_to_string(repo("config/launch/archie.toml")).unwrap())
-            .unwrap();
+    let sim_file = dir.join("config/sim.toml");
+    profile_on("archie", url, &launch.join("walk.toml"), |config| {
+        if config.ends_with("sim-archie.toml") {
+            sim_file.clone()
+        } else {
+            repo("config/launch").join(config)
+        }
+    })
+}
+
+/// The shipped launch profile `name` on `url`, written to `to`: each app's configuration
+/// where `config_of` puts it (from the profile's own relative path), its console at warn.
+fn profile_on(name: &str, url: &str, to: &Path, config_of: impl Fn(&str) -> PathBuf) -> PathBuf {
+    let file = repo("config/launch").join(format!("{name}.toml"));
+    let mut profile: toml::Table = toml::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
     profile.insert("lcm_url".into(), url.into());
     for app in profile["app"].as_array_mut().unwrap() {
         let app = app.as_table_mut().unwrap();
-        let config = app["config"].as_str().unwrap().to_string();
-        let path = if config.ends_with("sim-archie.toml") {
-            dir.join("config/sim.toml")
-        } else {
-            repo("config/launch").join(config)
-        };
+        let path = config_of(app["config"].as_str().unwrap());
         app.insert("config".into(), path.to_string_lossy().into_owned().into());
-        app.insert("args".into(), {
-            let mut a = app
-                .get("args")
-                .cloned()
-                .unwrap_or(toml::Value::Array(vec![]));
-            a.as_array_mut()
-                .unwrap()
-                .extend(["--log-level".into(), "warn".into()]);
-            a
-        });
+        let mut args = app
+            .get("args")
+            .cloned()
+            .unwrap_or(toml::Value::Array(vec![]));
+        args.as_array_mut()
+            .unwrap()
+            .extend(["--log-level".into(), "warn".into()]);
+        app.insert("args".into(), args);
     }
-    let path = launch.join("walk.toml");
-    std::fs::write(&path, toml::to_string(&profile).unwrap()).unwrap();
-    path
+    std::fs::write(to, toml::to_string(&profile).unwrap()).unwrap();
+    to.to_path_buf()
 }
 
 fn launch(profile: &Path, url: &str, dir: &Path) -> Proc {
@@ -195,21 +199,12 @@ fn the_hexapod_walks_its_tripod_gait_through_the_dynamixel_bridge() {
     let _one = ONE_WALK.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
     let url = udpm_url(7815);
-    let mut profile: toml::Table =
-        toml::from_str(&std::fs::read_to_string(repo("config/launch/hexapod.toml")).unwrap())
-            .unwrap();
-    profile.insert("lcm_url".into(), url.clone().into());
-    for app in profile["app"].as_array_mut().unwrap() {
-        let app = app.as_table_mut().unwrap();
-        let config = repo("config/launch").join(app["config"].as_str().unwrap());
-        app.insert(
-            "config".into(),
-            config.to_string_lossy().into_owned().into(),
-        );
-        app.insert("args".into(), vec!["--log-level", "warn"].into());
-    }
-    let path = dir.path().join("hexapod.toml");
-    std::fs::write(&path, toml::to_string(&profile).unwrap()).unwrap();
+    let path = profile_on(
+        "hexapod",
+        &url,
+        &dir.path().join("hexapod.toml"),
+        |config| repo("config/launch").join(config),
+    );
     let launcher = launch(&path, &url, dir.path());
     let out = on_bus("stride", &url)
         .args(["step", "0.2", "--timeout", "60"])
