@@ -286,7 +286,7 @@ pub struct GaitApp {
     /// The pelvis's measured pose, and the gait's frame in the world it corrects.
     odometry: Option<(lcm::Subscription, Receiver<OdometryT>)>,
     anchor: Anchor,
-    /// Odometry messages not believed (too far from the anchor, or not finite).
+    /// Odometry estimates not believed (too far from the anchor).
     odometry_dropped: u64,
     /// Walker time 0: the node's start, on the monotonic and the system clock.
     t0: Instant,
