@@ -6,7 +6,56 @@
 
 mod common;
 
-use stride_gait::pattern::Kind;
+use stride_gait::pattern::{Kind, Pattern, PatternConfig};
+use stride_gait::timeline::Phase;
+
+/// The smallest margin of a pattern's cart-table ZMP in its support polygon, worked out here
+/// from the samples alone, sharing no code with the generator's own check: the ZMP
+/// p = x − (z_c/g)·ẍ from each sample's COM, the soles' corners from the feet on the ground
+/// (the stance sole in single support, both in double), and the distance to the nearest edge
+/// of their convex hull, an edge being a pair of corners with every other corner on its
+/// inner side (brute force, against the generator's monotone chain).
+fn margin_by_hand(p: &Pattern, cfg: &PatternConfig) -> f64 {
+    let k = cfg.z_c / cfg.g;
+    let (l, w) = (cfg.sole.length / 2.0, cfg.sole.width / 2.0);
+    let mut worst = f64::INFINITY;
+    for s in &p.samples {
+        let zmp = [
+            s.com.x.x[0] - k * s.com.x.x[2],
+            s.com.y.x[0] - k * s.com.y.x[2],
+        ];
+        let on: Vec<usize> = match s.phase {
+            Phase::Single { swing, .. } => vec![swing.other().index()],
+            Phase::Double { .. } => vec![0, 1],
+        };
+        let mut corners = Vec::new();
+        for f in on {
+            let [x, y, _, yaw] = s.feet[f][0];
+            let (sn, cs) = yaw.sin_cos();
+            for (a, b) in [(l, w), (-l, w), (-l, -w), (l, -w)] {
+                corners.push([x + cs * a - sn * b, y + sn * a + cs * b]);
+            }
+        }
+        let mut margin = f64::INFINITY;
+        for i in 0..corners.len() {
+            for j in 0..corners.len() {
+                let (a, b) = (corners[i], corners[j]);
+                let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+                let len = dx.hypot(dy);
+                if len < 1e-9 {
+                    continue;
+                }
+                // Inside is on the left of a → b; an edge has no corner on its right.
+                let side = |q: [f64; 2]| (dx * (q[1] - a[1]) - dy * (q[0] - a[0])) / len;
+                if corners.iter().all(|&q| side(q) >= -1e-9) {
+                    margin = margin.min(side(zmp));
+                }
+            }
+        }
+        worst = worst.min(margin);
+    }
+    worst
+}
 
 #[test]
 fn every_shipped_scenes_plan_keeps_its_zmp_inside() {
@@ -29,6 +78,12 @@ fn every_shipped_scenes_plan_keeps_its_zmp_inside() {
                 .unwrap_or_else(|e| panic!("{kind:?}, {}: {e}", w.name));
             let (m, t) = pat.min_margin();
             assert!(m >= 0.01, "{kind:?}, {}: margin {m} at {t}", w.name);
+            let by_hand = margin_by_hand(&pat, g.config());
+            assert!(
+                by_hand >= 0.01 && (by_hand - m).abs() < 1e-6,
+                "{kind:?}, {}: margin {m} by the generator, {by_hand} worked out here",
+                w.name
+            );
             let stretched = common::stretched(&g, &pat, &w.steps);
             let joints = if w.archie {
                 match archie.joints(&pat) {
