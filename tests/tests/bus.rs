@@ -254,3 +254,91 @@ fn heartbeat_is_published_and_decodes() {
     let got = got.lock().unwrap();
     assert!(got.iter().all(|m| m.node == "echo-under-test" && m.pid > 0));
 }
+
+#[test]
+#[ignore = "multicast: scripts/test runs it in a private network namespace"]
+fn a_local_bus_keeps_its_channels_off_the_shared_one() {
+    require_sandbox();
+    let shared_url = udpm_url(7721);
+    let local_url = udpm_url(7722);
+    let both = Lcm::with_local(
+        &shared_url,
+        &local_url,
+        &["JOINT_.*".into(), "CAN_.*".into()],
+    )
+    .unwrap();
+    assert_eq!(
+        both.local_bus(),
+        Some((
+            local_url.as_str(),
+            &["JOINT_.*".to_string(), "CAN_.*".to_string()][..]
+        ))
+    );
+    // Plain instances on each bus see what crosses it.
+    let seen = |url: &str| {
+        let lcm = Lcm::new(url).unwrap();
+        let log = Arc::new(Mutex::new(Vec::<String>::new()));
+        let l = log.clone();
+        let sub = lcm
+            .subscribe_raw(".*", move |info, _| {
+                l.lock().unwrap().push(info.channel.into())
+            })
+            .unwrap();
+        (lcm, sub, log)
+    };
+    let (on_shared, _s1, shared_log) = seen(&shared_url);
+    let (on_local, _s2, local_log) = seen(&local_url);
+    // The routed instance hears both buses, each subscription on its own.
+    let heard = Arc::new(Mutex::new(Vec::<String>::new()));
+    let subs: Vec<_> = ["JOINT_STATE", "PLAN"]
+        .iter()
+        .map(|ch| {
+            let h = heard.clone();
+            both.subscribe(ch, move |info, _: PingT| {
+                h.lock().unwrap().push(info.channel.into())
+            })
+            .unwrap()
+        })
+        .collect();
+    for i in 0..3 {
+        both.publish("JOINT_STATE", &ping(i, 16)).unwrap();
+        both.publish("PLAN", &ping(i, 16)).unwrap();
+        on_local.publish("JOINT_STATE", &ping(10 + i, 16)).unwrap();
+        on_shared.publish("PLAN", &ping(10 + i, 16)).unwrap();
+    }
+    let deadline = Instant::now() + Duration::from_secs(3);
+    while Instant::now() < deadline && heard.lock().unwrap().len() < 12 {
+        both.handle_timeout(Duration::from_millis(20)).unwrap();
+        on_shared.handle_timeout(Duration::ZERO).unwrap();
+        on_local.handle_timeout(Duration::ZERO).unwrap();
+    }
+    handle_until(&on_shared, Duration::from_millis(200), || false);
+    handle_until(&on_local, Duration::from_millis(200), || false);
+    let count = |log: &Mutex<Vec<String>>, ch: &str| {
+        log.lock()
+            .unwrap()
+            .iter()
+            .filter(|c| c.as_str() == ch)
+            .count()
+    };
+    assert_eq!(
+        count(&heard, "JOINT_STATE"),
+        6,
+        "{:?}",
+        heard.lock().unwrap()
+    );
+    assert_eq!(count(&heard, "PLAN"), 6, "{:?}", heard.lock().unwrap());
+    assert_eq!(
+        count(&shared_log, "JOINT_STATE"),
+        0,
+        "a local channel crossed"
+    );
+    assert_eq!(count(&shared_log, "PLAN"), 6);
+    assert_eq!(count(&local_log, "JOINT_STATE"), 6);
+    assert_eq!(count(&local_log, "PLAN"), 0, "a shared channel went local");
+    assert_eq!(both.stats().published, 6);
+    drop(subs);
+    // A pattern that is no regular expression is one error naming it.
+    let e = Lcm::with_local(&shared_url, &local_url, &["JOINT_(".into()]).unwrap_err();
+    assert!(e.to_string().contains("JOINT_("), "{e}");
+}

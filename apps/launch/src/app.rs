@@ -228,6 +228,15 @@ pub fn run(l: Launch<Cli, NoConfig>) -> anyhow::Result<ExitCode> {
                         a.program.display(),
                         a.args.join(" ")
                     )?;
+                    if let Some(l) = &a.local {
+                        writeln!(
+                            out,
+                            "  {:<16} local bus {}: {}",
+                            "",
+                            l.url,
+                            l.channels.join(",")
+                        )?;
+                    }
                 }
                 return Ok(ExitCode::SUCCESS);
             }

@@ -139,8 +139,22 @@ pub struct ProfileFile {
     /// Channels of the system stop and of the launcher (the defaults suit every robot).
     #[serde(default)]
     pub channels: Channels,
+    /// A host's own bus beside the shared one, by host name: the channels it names stay on
+    /// that computer (the robot's full-rate data), the rest crosses to the other hosts.
+    #[serde(default)]
+    pub local: BTreeMap<String, LocalBus>,
     /// The apps.
     pub app: Vec<AppSpec>,
+}
+
+/// A host's own bus (`[local.HOST]`).
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LocalBus {
+    /// Its LCM URL: udpm with ttl=0 (it never leaves the computer) on a port of its own.
+    pub url: String,
+    /// The channels that go there: regular expressions, anchored at both ends.
+    pub channels: Vec<String>,
 }
 
 fn local() -> String {
@@ -193,6 +207,8 @@ pub struct App {
     pub host: String,
     /// Its LCM URL.
     pub lcm_url: String,
+    /// Its host's own bus, if the profile gives the host one and the app is a stride app.
+    pub local: Option<LocalBus>,
     /// When it is started again.
     pub restart: Restart,
     /// What it waits for.
@@ -251,6 +267,48 @@ pub fn check_url(url: &str) -> Result<(), String> {
             }
             _ => return Err(format!("LCM URL {url:?}: unknown option {k:?}")),
         }
+    }
+    Ok(())
+}
+
+/// The address and port of a udpm URL.
+fn udpm_endpoint(url: &str) -> Option<&str> {
+    let rest = url.strip_prefix("udpm://")?;
+    Some(rest.split_once('?').map_or(rest, |(a, _)| a))
+}
+
+/// Checks a host's local bus: a udpm URL with ttl=0 on another address or port than the
+/// shared bus, and channel patterns that are regular expressions.
+fn check_local(host: &str, bus: &LocalBus, shared: &str) -> Result<(), String> {
+    let what = format!("local bus of host {host:?}");
+    check_url(&bus.url).map_err(|e| format!("{what}: {e}"))?;
+    let endpoint = udpm_endpoint(&bus.url)
+        .ok_or_else(|| format!("{what}: {:?} is not a udpm:// URL", bus.url))?;
+    if !bus.url.contains("ttl=0") {
+        return Err(format!(
+            "{what}: {:?} needs ttl=0 (a local bus never leaves its computer)",
+            bus.url
+        ));
+    }
+    if udpm_endpoint(shared) == Some(endpoint) {
+        return Err(format!(
+            "{what}: {endpoint} is the shared bus's address and port (give it a port of its own)"
+        ));
+    }
+    if bus.channels.is_empty() {
+        return Err(format!("{what}: no channels"));
+    }
+    for c in &bus.channels {
+        if c.contains(',') {
+            return Err(format!(
+                "{what}: channel pattern {c:?} has a comma (apps take the list comma-separated)"
+            ));
+        }
+        regex::Regex::new(&format!("^(?:{c})$")).map_err(|e| {
+            let why = e.to_string();
+            let why = why.lines().last().unwrap_or("").trim().to_owned();
+            format!("{what}: channel pattern {c:?} is no regular expression ({why})")
+        })?;
     }
     Ok(())
 }
@@ -314,6 +372,16 @@ impl Profile {
             && b.reset_after.is_finite())
         {
             return Err("lost_after and the backoff's times must be positive and finite".into());
+        }
+        for (host, bus) in &file.local {
+            check_local(host, bus, &file.lcm_url)?;
+            if !file
+                .app
+                .iter()
+                .any(|a| a.host.as_deref().unwrap_or(&file.host) == host)
+            {
+                return Err(format!("local bus of host {host:?}: no app runs there"));
+            }
         }
         let mut names = BTreeSet::new();
         for a in &file.app {
@@ -403,12 +471,23 @@ impl Profile {
             if sim {
                 args.extend(a.sim_args.iter().cloned());
             }
+            let host = a.host.clone().unwrap_or_else(|| file.host.clone());
+            let local = file.local.get(&host).filter(|_| a.node).cloned();
+            if let Some(l) = &local {
+                if lcm_url == l.url {
+                    return Err(format!(
+                        "app {:?}: its LCM URL is its host's local bus ({})",
+                        a.name, l.url
+                    ));
+                }
+            }
             apps.push(App {
                 name: a.name.clone(),
                 program,
                 args,
-                host: a.host.clone().unwrap_or_else(|| file.host.clone()),
+                host,
                 lcm_url,
+                local,
                 restart: a.restart,
                 depends: a.depends.clone(),
                 critical: a.critical,
@@ -524,6 +603,30 @@ mod tests {
     }
 
     #[test]
+    fn a_hosts_local_bus_goes_to_its_stride_apps_only() {
+        let p = profile(
+            &format!(
+                "{HEAD}[[app]]\nname = \"x\"\ncommand = \"stride-a\"\nhost = \"robot\"\n\
+                 [[app]]\nname = \"log\"\ncommand = \"stride-b\"\nhost = \"robot\"\nnode = false\n\
+                 [[app]]\nname = \"y\"\ncommand = \"stride-c\"\nhost = \"laptop\"\n\
+                 [local.robot]\nurl = \"udpm://239.255.76.67:7668?ttl=0\"\nchannels = [\"JOINT_.*\"]\n"
+            ),
+            false,
+        )
+        .unwrap();
+        let local = |n: &str| p.apps.iter().find(|a| a.name == n).unwrap().local.clone();
+        assert_eq!(
+            local("x").map(|l| (l.url, l.channels)),
+            Some((
+                "udpm://239.255.76.67:7668?ttl=0".to_string(),
+                vec!["JOINT_.*".to_string()]
+            ))
+        );
+        assert_eq!(local("log"), None);
+        assert_eq!(local("y"), None);
+    }
+
+    #[test]
     fn every_profile_error_is_one_clear_line() {
         let cases = [
             (
@@ -570,6 +673,34 @@ mod tests {
                      [[app]]\nname = \"y\"\ncommand = \"stride-b\"\nsim = \"only\"\n"
                 ),
                 "which does not run without --sim",
+            ),
+            (
+                format!(
+                    "{HEAD}[[app]]\nname = \"x\"\ncommand = \"stride-a\"\n\
+                     [local.local]\nurl = \"udpm://239.255.76.67:7668?ttl=1\"\nchannels = [\"J\"]\n"
+                ),
+                "needs ttl=0",
+            ),
+            (
+                format!(
+                    "{HEAD}[[app]]\nname = \"x\"\ncommand = \"stride-a\"\n\
+                     [local.local]\nurl = \"udpm://239.255.76.67:7667?ttl=0\"\nchannels = [\"J\"]\n"
+                ),
+                "is the shared bus's address and port",
+            ),
+            (
+                format!(
+                    "{HEAD}[[app]]\nname = \"x\"\ncommand = \"stride-a\"\n\
+                     [local.local]\nurl = \"udpm://239.255.76.67:7668?ttl=0\"\nchannels = [\"J(\"]\n"
+                ),
+                "channel pattern \"J(\" is no regular expression",
+            ),
+            (
+                format!(
+                    "{HEAD}[[app]]\nname = \"x\"\ncommand = \"stride-a\"\n\
+                     [local.robot]\nurl = \"udpm://239.255.76.67:7668?ttl=0\"\nchannels = [\"J\"]\n"
+                ),
+                "local bus of host \"robot\": no app runs there",
             ),
         ];
         for (text, want) in cases {

@@ -245,9 +245,16 @@ impl Supervisor {
         now: Instant,
     ) -> Result<(), String> {
         let mut c = Command::new(&p.app.program);
-        c.args(&p.app.args)
-            .env("STRIDE_LCM_URL", &p.app.lcm_url)
-            .stdin(Stdio::null())
+        c.args(&p.app.args).env("STRIDE_LCM_URL", &p.app.lcm_url);
+        match &p.app.local {
+            Some(l) => c
+                .env("STRIDE_LOCAL_URL", &l.url)
+                .env("STRIDE_LOCAL_CHANNELS", l.channels.join(",")),
+            None => c
+                .env_remove("STRIDE_LOCAL_URL")
+                .env_remove("STRIDE_LOCAL_CHANNELS"),
+        };
+        c.stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .process_group(0);

@@ -44,6 +44,22 @@ pub struct NodeArgs {
     #[arg(long, env = "STRIDE_LCM_URL", default_value = "", value_name = "URL")]
     pub lcm_url: String,
 
+    /// A second bus on this computer for the channels of --local (the robot's full-rate data),
+    /// e.g. udpm://239.255.76.67:7668?ttl=0 beside a shared --lcm-url with ttl=1 that other
+    /// hosts join. Empty: one bus.
+    #[arg(long, env = "STRIDE_LOCAL_URL", default_value = "", value_name = "URL")]
+    pub local_url: String,
+
+    /// The channels that go to the local bus: regular expressions, comma-separated (e.g.
+    /// `JOINT_.*,CAN_.*`). Publishing and subscribing pick the bus by the channel's name.
+    #[arg(
+        long = "local",
+        env = "STRIDE_LOCAL_CHANNELS",
+        value_delimiter = ',',
+        value_name = "REGEX,..."
+    )]
+    pub local_channels: Vec<String>,
+
     /// TOML configuration file of this app.
     #[arg(long, short = 'c', value_name = "FILE")]
     pub config: Option<PathBuf>,
@@ -66,11 +82,32 @@ impl Default for NodeArgs {
     fn default() -> Self {
         NodeArgs {
             lcm_url: String::new(),
+            local_url: String::new(),
+            local_channels: Vec::new(),
             config: None,
             log_level: "info".into(),
             name: None,
             status_channel: STATUS_CHANNEL.into(),
         }
+    }
+}
+
+/// The LCM instance the flags ask for: one bus, or a shared one with a local one beside it.
+pub fn bus(args: &NodeArgs) -> anyhow::Result<Lcm> {
+    let channels: Vec<String> = args
+        .local_channels
+        .iter()
+        .map(|c| c.trim().to_owned())
+        .filter(|c| !c.is_empty())
+        .collect();
+    match (args.local_url.is_empty(), channels.is_empty()) {
+        (true, true) => Ok(Lcm::new(&args.lcm_url)?),
+        (true, false) => anyhow::bail!("--local {} needs --local-url", channels.join(",")),
+        (false, true) => anyhow::bail!(
+            "--local-url {} needs --local CHANNELS (the channels that go there)",
+            args.local_url
+        ),
+        (false, false) => Ok(Lcm::with_local(&args.lcm_url, &args.local_url, &channels)?),
     }
 }
 
@@ -135,7 +172,7 @@ impl Node {
     pub fn start(default_name: &str, args: &NodeArgs) -> anyhow::Result<Node> {
         init_logging(&args.log_level);
         let name = args.name.clone().unwrap_or_else(|| default_name.to_owned());
-        let lcm = Lcm::new(&args.lcm_url)?;
+        let lcm = bus(args)?;
         let shutdown = shutdown_on_signals()?;
         let health = Arc::new(Mutex::new(Health {
             state: stride_lcmtypes::stride::NodeStatusT::STATE_STARTING,
@@ -150,7 +187,16 @@ impl Node {
             started,
             Duration::from_secs(1),
         )?;
-        tracing::info!(node = name.as_str(), url = lcm.url(), "node started");
+        match lcm.local_bus() {
+            Some((local, channels)) => tracing::info!(
+                node = name.as_str(),
+                url = lcm.url(),
+                local,
+                channels = channels.join(",").as_str(),
+                "node started"
+            ),
+            None => tracing::info!(node = name.as_str(), url = lcm.url(), "node started"),
+        }
         Ok(Node {
             name,
             lcm,

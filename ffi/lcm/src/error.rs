@@ -43,6 +43,14 @@ pub enum Error {
         /// Why it was refused.
         reason: &'static str,
     },
+    /// A local bus's channel pattern is not a regular expression.
+    #[error("local bus channel pattern {pattern:?}: {reason}")]
+    Route {
+        /// The pattern.
+        pattern: String,
+        /// Why it was refused.
+        reason: String,
+    },
     /// A subscription pattern contains a NUL byte or was refused by liblcm.
     #[error("could not subscribe to {pattern:?}")]
     Subscribe {

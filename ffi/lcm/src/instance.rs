@@ -115,6 +115,35 @@ impl Drop for Shared {
 #[derive(Clone)]
 pub struct Publisher {
     shared: Arc<Shared>,
+    /// The instance's local bus and the channels that go there (see [`Lcm::with_local`]).
+    local: Option<Arc<LocalRoute>>,
+}
+
+/// A second bus beside an instance's own, and the channels routed to it.
+struct LocalRoute {
+    channels: regex::RegexSet,
+    patterns: Vec<String>,
+    publisher: Publisher,
+}
+
+impl LocalRoute {
+    fn takes(&self, channel: &str) -> bool {
+        self.channels.is_match(channel)
+    }
+}
+
+impl Stats {
+    fn plus(self, o: Stats) -> Stats {
+        Stats {
+            published: self.published + o.published,
+            publish_errors: self.publish_errors + o.publish_errors,
+            received: self.received + o.received,
+            decode_errors: self.decode_errors + o.decode_errors,
+            handler_panics: self.handler_panics + o.handler_panics,
+            lost: self.lost + o.lost,
+            sequence_streams: self.sequence_streams + o.sequence_streams,
+        }
+    }
 }
 
 impl std::fmt::Debug for Publisher {
@@ -158,6 +187,9 @@ impl Publisher {
 
     /// Publishes raw bytes on `channel`.
     pub fn publish_raw(&self, channel: &str, data: &[u8]) -> Result<()> {
+        if let Some(local) = self.local.as_deref().filter(|l| l.takes(channel)) {
+            return local.publisher.publish_raw(channel, data);
+        }
         let _guard = lock(&self.shared.publish);
         self.publish_locked(channel, data)
     }
@@ -197,6 +229,9 @@ impl Publisher {
 
     /// Encodes `msg` and publishes it on `channel`.
     pub fn publish<M: Message>(&self, channel: &str, msg: &M) -> Result<()> {
+        if let Some(local) = self.local.as_deref().filter(|l| l.takes(channel)) {
+            return local.publisher.publish(channel, msg);
+        }
         let mut buf = lock(&self.shared.publish);
         buf.clear();
         msg.encode_into(&mut buf).map_err(|source| Error::Encode {
@@ -211,9 +246,13 @@ impl Publisher {
         result
     }
 
-    /// Counters of the instance.
+    /// Counters of the instance (its local bus's included).
     pub fn stats(&self) -> Stats {
-        self.shared.counters.snapshot()
+        let own = self.shared.counters.snapshot();
+        match &self.local {
+            Some(l) => own.plus(l.publisher.stats()),
+            None => own,
+        }
     }
 }
 
@@ -419,6 +458,8 @@ pub struct Lcm {
     registry: Arc<Mutex<Registry>>,
     /// Set when a dropped subscription waits to be unsubscribed.
     pending: Arc<AtomicBool>,
+    /// The local bus (see [`Lcm::with_local`]).
+    local: Option<Box<Lcm>>,
     _not_sync: PhantomData<Cell<()>>,
 }
 
@@ -484,16 +525,74 @@ impl Lcm {
             closed: false,
         }));
         Ok(Lcm {
-            publisher: Publisher { shared },
+            publisher: Publisher {
+                shared,
+                local: None,
+            },
             registry,
             pending: Arc::new(AtomicBool::new(false)),
+            local: None,
             _not_sync: PhantomData,
         })
     }
 
-    /// The URL of this instance.
+    /// An instance on `url` with a second, local bus on `local_url` for the channels that match
+    /// one of `local_channels` (regular expressions anchored at both ends, as subscriptions'):
+    /// a robot's full-rate data (joint states, set-points, CAN frames) stays on a bus of its
+    /// own computer (`ttl=0`, its own port) while the rest is shared with the other hosts.
+    ///
+    /// A publish goes to the bus its channel is routed to; a subscription goes to the bus its
+    /// pattern, read as a channel name, is routed to (subscribe to the local channels by name
+    /// or by a pattern that the local patterns match). [`Lcm::handle`] and
+    /// [`Lcm::handle_timeout`] wait on both buses; [`Lcm::fileno`] is the shared bus's only.
+    /// With no local channels this is [`Lcm::new`].
+    pub fn with_local(url: &str, local_url: &str, local_channels: &[String]) -> Result<Lcm> {
+        let mut lcm = Lcm::new(url)?;
+        if local_channels.is_empty() {
+            return Ok(lcm);
+        }
+        let anchored: Vec<String> = local_channels
+            .iter()
+            .map(|p| format!("^(?:{p})$"))
+            .collect();
+        let channels = regex::RegexSet::new(&anchored).map_err(|e| {
+            let pattern = local_channels
+                .iter()
+                .find(|p| regex::Regex::new(p).is_err())
+                .cloned()
+                .unwrap_or_default();
+            Error::Route {
+                pattern,
+                reason: e.to_string().lines().last().unwrap_or("").trim().to_owned(),
+            }
+        })?;
+        let local = Lcm::new(local_url)?;
+        lcm.publisher.local = Some(Arc::new(LocalRoute {
+            channels,
+            patterns: local_channels.to_vec(),
+            publisher: local.publisher(),
+        }));
+        lcm.local = Some(Box::new(local));
+        Ok(lcm)
+    }
+
+    /// The URL of this instance (the shared bus's, with a local bus).
     pub fn url(&self) -> &str {
         self.publisher.url()
+    }
+
+    /// The local bus's URL and the channel patterns routed to it, if the instance has one.
+    pub fn local_bus(&self) -> Option<(&str, &[String])> {
+        let route = self.publisher.local.as_deref()?;
+        Some((route.publisher.url(), &route.patterns))
+    }
+
+    /// The instance a subscription to `pattern` belongs on.
+    fn bus_for(&self, pattern: &str) -> &Lcm {
+        match (&self.local, &self.publisher.local) {
+            (Some(lcm), Some(route)) if route.takes(pattern) => lcm,
+            _ => self,
+        }
     }
 
     /// A handle that publishes on this instance from any thread.
@@ -501,7 +600,7 @@ impl Lcm {
         self.publisher.clone()
     }
 
-    /// Counters of the instance.
+    /// Counters of the instance (its local bus's included).
     pub fn stats(&self) -> Stats {
         self.publisher.stats()
     }
@@ -569,6 +668,10 @@ impl Lcm {
     where
         F: FnMut(&RecvInfo<'_>, &[u8]) + Send + 'static,
     {
+        let bus = self.bus_for(pattern);
+        if !std::ptr::eq(bus, self) {
+            return bus.subscribe_raw(pattern, handler);
+        }
         self.subscribe_handler(
             pattern,
             Arc::default(),
@@ -589,6 +692,10 @@ impl Lcm {
         M: Message + 'static,
         F: FnMut(&RecvInfo<'_>, M) + Send + 'static,
     {
+        let bus = self.bus_for(pattern);
+        if !std::ptr::eq(bus, self) {
+            return bus.subscribe(pattern, handler);
+        }
         let mut trackers: HashMap<String, SequenceTracker> = HashMap::new();
         let counters = Arc::new(SubCounters::default());
         let sub_counters = counters.clone();
@@ -664,6 +771,9 @@ impl Lcm {
     /// A signal arriving while it waits (EINTR) returns `Ok` without dispatching, so a loop can
     /// check its shutdown flag.
     pub fn handle(&self) -> Result<()> {
+        if let Some(local) = &self.local {
+            return self.handle_both(local, None).map(|_| ());
+        }
         // SAFETY: the pointer is live; `Lcm` is not Sync, so no other thread handles.
         let rc = self.dispatch(|p| unsafe { lcm_sys::lcm_handle(p) });
         if rc == 0 || interrupted() {
@@ -680,16 +790,58 @@ impl Lcm {
     ///
     /// [`Error::NoDescriptor`] when the instance has nothing to wait on (see [`Lcm::fileno`]).
     pub fn handle_timeout(&self, timeout: Duration) -> Result<bool> {
+        match &self.local {
+            Some(local) => self.handle_both(local, Some(timeout)),
+            None => self.handle_own(timeout),
+        }
+    }
+
+    /// Waits on this instance and its local bus together, then dispatches one message from
+    /// each that has one.
+    fn handle_both(&self, local: &Lcm, timeout: Option<Duration>) -> Result<bool> {
+        let buses = [self, local];
+        let mut polls = [libc::pollfd {
+            fd: -1,
+            events: libc::POLLIN,
+            revents: 0,
+        }; 2];
+        for (p, bus) in polls.iter_mut().zip(buses) {
+            p.fd = bus.fileno();
+            if p.fd < 0 {
+                return Err(Error::NoDescriptor {
+                    url: bus.url().to_owned(),
+                });
+            }
+        }
+        let ms = timeout.map_or(-1, timeout_ms);
+        // SAFETY: polls is a valid array of two pollfd.
+        let rc = unsafe { libc::poll(polls.as_mut_ptr(), 2, ms) };
+        if rc < 0 {
+            return if interrupted() {
+                Ok(false)
+            } else {
+                Err(Error::Handle {
+                    url: self.url().to_owned(),
+                })
+            };
+        }
+        let mut any = false;
+        for (p, bus) in polls.iter().zip(buses) {
+            if p.revents != 0 {
+                any |= bus.handle_own(Duration::ZERO)?;
+            }
+        }
+        Ok(any)
+    }
+
+    fn handle_own(&self, timeout: Duration) -> Result<bool> {
         // liblcm would put the descriptor in an fd_set, and glibc aborts on -1.
         if self.fileno() < 0 {
             return Err(Error::NoDescriptor {
                 url: self.url().to_owned(),
             });
         }
-        let mut ms = timeout.as_millis().min(i32::MAX as u128) as i32;
-        if ms == 0 && !timeout.is_zero() {
-            ms = 1;
-        }
+        let ms = timeout_ms(timeout);
         // SAFETY: as in `handle`.
         let rc = self.dispatch(|p| unsafe { lcm_sys::lcm_handle_timeout(p, ms) });
         match rc {
@@ -713,6 +865,8 @@ impl Lcm {
 
     /// The file descriptor that is readable while messages wait; for `poll`/`epoll` loops.
     /// When it is readable, [`Lcm::handle`] will not block.
+    ///
+    /// With a local bus ([`Lcm::with_local`]) this is the shared bus's descriptor only.
     ///
     /// -1 when the instance has none: a `tcpq://` instance whose server connection broke
     /// (liblcm reconnects in [`Lcm::handle`] and publishes, with a new descriptor), or a
@@ -770,6 +924,16 @@ impl Drop for Lcm {
         }
         reg.deferred.clear();
         reg.closed = true;
+    }
+}
+
+/// A timeout in liblcm's milliseconds: sub-millisecond ones rounded up, zero kept.
+fn timeout_ms(timeout: Duration) -> i32 {
+    let ms = timeout.as_millis().min(i32::MAX as u128) as i32;
+    if ms == 0 && !timeout.is_zero() {
+        1
+    } else {
+        ms
     }
 }
 
