@@ -335,6 +335,11 @@ impl GaitConfig {
                 self.walker.switch_ahead, self.lookahead
             ));
         }
+        if self.walker.steps_per_plan == 0 {
+            return Err(
+                "walker.steps_per_plan must be at least 1: 0 would never walk a plan".into(),
+            );
+        }
         self.pattern.timing.check().map_err(|e| e.to_string())?;
         if let Some(g) = &self.goal {
             g.check()?;

@@ -6,50 +6,24 @@
 //! offset was extrapolated from the standing one at a pattern that starts mid-walk (a first
 //! guess out of the legs' reach).
 
+mod common;
+
 use std::cell::RefCell;
 
 use stride_gait::pattern::Pattern;
-use stride_gait::timeline::{Footstep, Side};
-use stride_gait::walker::{Plan, Verdict, Walker};
+use stride_gait::timeline::Footstep;
+use stride_gait::walker::{Plan, Verdict};
 use stride_gait::GaitError;
-use stride_gait_node::{archie_gait, GaitConfig};
-use stride_kinematics::archie::ArchieConfig;
-
-fn repo(p: &str) -> std::path::PathBuf {
-    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(p)
-}
 
 #[test]
 fn a_walk_replanned_at_every_step_joins_its_rows_within_the_joints_limits() {
-    let cfg: GaitConfig =
-        toml::from_str(&std::fs::read_to_string(repo("config/gait-archie.toml")).unwrap()).unwrap();
-    let robot = ArchieConfig::load(&repo("config/robots/archie.toml")).unwrap();
-    let (legs, gen) = archie_gait(&cfg, robot.clone()).unwrap();
-    let side = |n: i64| if n % 2 == 1 { Side::Left } else { Side::Right };
-    let step = |n: i64| Footstep {
-        number: n,
-        side: side(n),
-        place: [
-            0.2 * n as f64,
-            if side(n) == Side::Left { 0.1 } else { -0.1 },
-            0.0,
-            0.0,
-        ],
-        swing_height: 0.0,
-        duration: 0.0,
-        padding: false,
-    };
-    let mut w = Walker::new(
-        gen,
-        cfg.walker,
-        0.0,
-        [0.0, 0.1, 0.0, 0.0],
-        [0.0, -0.1, 0.0, 0.0],
-        0,
-    )
-    .unwrap();
+    let common::Archie {
+        cfg,
+        legs,
+        walker: mut w,
+    } = common::archie();
+    let robot = legs.robot.clone();
+    let step = |n: i64| common::straight(n, 0.2);
     let cache = RefCell::new(None);
     let check = |p: &Pattern| -> Result<(), GaitError> {
         *cache.borrow_mut() = Some(legs.joints(p)?);

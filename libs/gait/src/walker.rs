@@ -10,6 +10,9 @@
 //!   never started from;
 //! - a plan with a NaN, a step beyond the per-step limits or a foothold no leg reaches is
 //!   refused with its reason and counted; the robot then steps in place and stands;
+//! - of a plan, only the first `steps_per_plan` steps after the step it was made for are
+//!   walked unless a newer plan comes: a lost planner or link stops the robot's progress
+//!   within a step;
 //! - when the taken plan's steps run out before the goal, the robot steps in place, for at
 //!   most `plan_timeout` after the last valid plan; then, or on a stop, it brings its feet
 //!   together and stands. A plan whose remaining steps are all padding, or that says its
@@ -48,6 +51,20 @@ pub struct WalkerConfig {
     pub switch_ahead: f64,
     /// An in-place step's swing height, m.
     pub in_place_height: f64,
+    /// How many of a plan's steps are walked while no newer plan comes: 1 walks the step after
+    /// the one it was made for, then steps in place. A replanning planner answers at every
+    /// step, so a lost planner or link stops the robot's progress within a step.
+    #[serde(default = "steps_per_plan")]
+    pub steps_per_plan: u32,
+}
+
+/// How long before a step is fixed (at the switch) the walker decides that no plan came for
+/// it, s: a plan may come until then; a walker ticked less often than this decides a step
+/// later.
+const STALE_DECISION: f64 = 0.1;
+
+fn steps_per_plan() -> u32 {
+    1
 }
 
 impl Default for WalkerConfig {
@@ -62,6 +79,7 @@ impl Default for WalkerConfig {
             plan_timeout: 3.0,
             switch_ahead: 0.15,
             in_place_height: 0.03,
+            steps_per_plan: steps_per_plan(),
         }
     }
 }
@@ -137,8 +155,13 @@ pub struct Walker {
     counters: Counters,
     /// When the last valid plan came.
     last_valid: f64,
+    /// The step number the last taken plan echoed (at first, the walker's own).
+    last_echo: i64,
     /// The goal was reached (the taken plan ended in padding).
     at_goal: bool,
+    /// The pattern's steps ahead are a plan's (not the walker's own stand): they are walked
+    /// only `steps_per_plan` beyond the last plan's echo.
+    following: bool,
     /// Stopped by a command: plans are ignored until a resume.
     stopped: bool,
     /// Why the last change happened (or a plan was refused), for the status.
@@ -175,9 +198,11 @@ impl Walker {
             cfg,
             pattern,
             last_number: number,
+            last_echo: number,
             counters: Counters::default(),
             last_valid: f64::NEG_INFINITY,
             at_goal: true,
+            following: false,
             stopped: false,
             note: "standing".into(),
         })
@@ -380,7 +405,9 @@ impl Walker {
             Ok(()) => {
                 self.counters.taken += 1;
                 self.last_valid = now;
+                self.last_echo = plan.echo;
                 self.at_goal = at_goal;
+                self.following = true;
                 self.last_number = self.last_number.max(plan.echo);
                 self.note = format!("plan for step {} taken", plan.echo);
                 Verdict::Taken(first)
@@ -392,6 +419,7 @@ impl Walker {
     /// Ends the walk soon: the steps already lifted land, then the feet come together and the
     /// robot stands.
     fn stand_soon(&mut self, now: f64) {
+        self.following = false;
         let (_, start) = self.switch(now);
         let steps = self.together(&start, Vec::new());
         let ok = |_: &Pattern| Ok(());
@@ -466,17 +494,75 @@ impl Walker {
     /// goal, adds in-place steps (for at most `plan_timeout` after the last valid plan), then
     /// brings the feet together. Returns true when the pattern changed.
     pub fn tick(&mut self, now: f64, joints: &dyn Fn(&Pattern) -> Result<(), GaitError>) -> bool {
-        if self.stopped || self.at_goal {
+        if self.stopped {
             return false;
         }
         let (k, start) = self.switch(now);
         let ahead: Vec<Footstep> = self.steps_from(k);
-        // Enough steps ahead: nothing to do until the last one starts.
-        if ahead.len() >= 2 {
+        // The next step of the plan is further from its echo than a plan is walked (none
+        // came for the steps since, even one that reaches the goal): in place instead.
+        // Decided when the step is about to be fixed (a plan may come until then).
+        let decide = self.pattern.samples[k].t + STALE_DECISION;
+        let next_start = self
+            .pattern
+            .timeline
+            .steps
+            .iter()
+            .find(|s| s.start > self.pattern.samples[k].t)
+            .map(|s| s.start);
+        let stale = self.following
+            && next_start.is_some_and(|s| s <= decide)
+            && ahead.first().is_some_and(|f| {
+                !f.padding && f.number > self.last_echo + i64::from(self.cfg.steps_per_plan)
+            });
+        if stale {
+            self.at_goal = false;
+            // The feet side by side at once, then in place; when that stop is beyond the
+            // pattern's margins (the step under way carries the walk on), the plan's next
+            // step first: it was checked with the plan.
+            let mut done = self.in_place(now, &start, Vec::new(), joints);
+            if let (Err(_), Some(n)) = (&done, ahead.first()) {
+                let beside = self.together(&start, Vec::new());
+                for share in [0.25, 0.5, 0.75, 1.0] {
+                    let mut step = *n;
+                    if let Some(b) = beside.first().filter(|b| b.side == n.side) {
+                        for i in 0..3 {
+                            step.place[i] = b.place[i] + share * (n.place[i] - b.place[i]);
+                        }
+                    }
+                    done = self.in_place(now, &start, vec![step], joints);
+                    if done.is_ok() {
+                        break;
+                    }
+                }
+            }
+            return match done {
+                Ok(()) => {
+                    // The walker's own steps from here: not a plan's.
+                    self.following = false;
+                    true
+                }
+                Err(e) => {
+                    // Neither: feet together and stand, as on a plan timeout (the next step
+                    // is decided again if the pattern cannot change).
+                    self.counters.stops += 1;
+                    self.note = format!("no plan for the next step, none in place ({e}): standing");
+                    let steps = self.together(&start, Vec::new());
+                    if self.replace(now, steps, &|_| Ok(())).is_ok() {
+                        self.at_goal = true;
+                        self.following = false;
+                    }
+                    true
+                }
+            };
+        }
+        if self.at_goal || ahead.len() >= 2 {
+            // At the goal, or enough steps ahead: nothing to do until the last one starts.
             return false;
         }
         if now - self.last_valid > self.cfg.plan_timeout {
             self.at_goal = true;
+            self.following = false;
             self.counters.stops += 1;
             self.note = format!(
                 "no valid plan for {} s: feet together, standing",
@@ -486,8 +572,20 @@ impl Walker {
             let _ = self.replace(now, steps, &|_| Ok(()));
             return true;
         }
-        // Step in place with the foot that would swing next.
-        let mut steps = ahead;
+        self.in_place(now, &start, ahead, joints).is_ok()
+    }
+
+    /// Makes the pattern `steps`, then the feet side by side (in place from a long stride is
+    /// beyond the legs: the ankles' limits), then steps in place with the foot that would
+    /// swing next, checked by `joints`.
+    fn in_place(
+        &mut self,
+        now: f64,
+        start: &Start,
+        steps: Vec<Footstep>,
+        joints: &dyn Fn(&Pattern) -> Result<(), GaitError>,
+    ) -> Result<(), GaitError> {
+        let mut steps = self.together(start, steps);
         let mut feet = [start.feet[0][0], start.feet[1][0]];
         if let Some(u) = start.under_way {
             feet[u.footstep.side.index()] = u.footstep.place;
@@ -506,6 +604,7 @@ impl Walker {
             .map(|f| f.number)
             .or(start.under_way.map(|u| u.footstep.number))
             .unwrap_or(self.counter(start.t).number);
+        let mut added = 0;
         while steps.len() < 3 {
             number += 1;
             steps.push(Footstep {
@@ -516,10 +615,12 @@ impl Walker {
                 duration: 0.0,
                 padding: true,
             });
-            self.counters.in_place += 1;
+            added += 1;
             side = side.other();
         }
+        self.replace(now, steps, joints)?;
+        self.counters.in_place += added;
         self.note = "no plan for the next step: stepping in place".into();
-        self.replace(now, steps, joints).is_ok()
+        Ok(())
     }
 }

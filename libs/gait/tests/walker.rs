@@ -118,7 +118,8 @@ fn a_late_planner_gets_in_place_steps_until_its_plan_matches() {
     let v = w.on_plan(&late, s2.lift, &ok, &any);
     assert_eq!(v, Verdict::Late { echo: 1, now: 2 });
     assert_eq!(w.counters().late, 1);
-    // The last taken step begins with nothing after it: the robot steps in place.
+    // The last taken step begins with nothing after it: the robot brings its feet side by
+    // side and steps in place.
     let s3 = w.pattern().timeline.steps[2].clone();
     assert!(w.tick(s3.start, &any));
     assert!(w.counters().in_place > 0);
@@ -127,10 +128,9 @@ fn a_late_planner_gets_in_place_steps_until_its_plan_matches() {
         .timeline
         .steps
         .iter()
-        .find(|s| s.footstep.number == 4)
+        .find(|s| s.footstep.padding)
         .cloned()
         .unwrap();
-    assert!(next.footstep.padding);
     assert_eq!(
         next.footstep.place, next.from,
         "an in-place step lands where it lifted"
@@ -138,9 +138,9 @@ fn a_late_planner_gets_in_place_steps_until_its_plan_matches() {
     // A plan that echoes the step under way then is taken and walked.
     let t = (next.lift + next.land) / 2.0;
     let now = w.counter(t).number;
-    assert_eq!(now, 4);
+    assert_eq!(now, next.footstep.number);
     let p = plan_from(&w, t, now, 3, 0);
-    assert_eq!(w.on_plan(&p, t, &ok, &any), Verdict::Taken(5));
+    assert_eq!(w.on_plan(&p, t, &ok, &any), Verdict::Taken(now + 1));
     assert_eq!(w.counters().taken, 2);
 }
 
@@ -229,4 +229,89 @@ fn a_stop_command_stands_the_robot_and_plans_wait_for_a_resume() {
     let v = w.on_plan(&again, tl.end, &ok, &any);
     assert!(matches!(v, Verdict::Taken(_)), "{v:?}");
     let _ = straight;
+}
+
+#[test]
+fn a_lost_planner_stops_the_robots_progress_within_a_step() {
+    // Plans come for steps 1 to 3 (echo 0, then 1, then 2), then no more (the planner or
+    // its link lost): the robot walks the last plan's first step, then in place.
+    let (l, r) = standing();
+    let cfg = WalkerConfig {
+        plan_timeout: 30.0,
+        ..WalkerConfig::default()
+    };
+    let mut w = Walker::new(generator(Kind::Preview), cfg, 0.0, l, r, 0).unwrap();
+    let p = plan_from(&w, 0.0, 0, 4, 0);
+    assert_eq!(w.on_plan(&p, 0.0, &ok, &any), Verdict::Taken(1));
+    let mut t = 0.0;
+    let mut echo = 0;
+    // A plan at the middle of each of steps 1 and 2, echoing it.
+    while echo < 2 {
+        t += 0.01;
+        w.tick(t, &any);
+        let c = w.counter(t);
+        if c.number == echo + 1 && c.phase > 0.5 {
+            echo = c.number;
+            let p = plan_from(&w, t, echo, 4, 0);
+            assert_eq!(w.on_plan(&p, t, &ok, &any), Verdict::Taken(echo + 1));
+        }
+    }
+    // No plan from here: walk on for a while. Each step as it started.
+    let mut started = std::collections::BTreeMap::new();
+    let end = t + 15.0;
+    while t < end {
+        t += 0.01;
+        w.tick(t, &any);
+        for s in &w.pattern().timeline.steps {
+            if s.start <= t {
+                started
+                    .entry(s.footstep.number)
+                    .or_insert_with(|| s.clone());
+            }
+        }
+    }
+    // The last plan (echo 2) gave steps 3 to 6: step 3 walked (the foremost foot ahead),
+    // then the rear foot brought beside it and only in place.
+    let mut front = f64::NEG_INFINITY;
+    let mut forward = vec![];
+    for s in started.values() {
+        if s.footstep.place[0] > front + 1e-9 && s.footstep.number > 0 {
+            forward.push(s.footstep.number);
+        }
+        front = front.max(s.footstep.place[0]).max(s.from[0]);
+    }
+    assert_eq!(forward.last(), Some(&3), "{forward:?}");
+    let in_place = started.values().filter(|s| s.footstep.padding).count();
+    assert!(in_place >= 3, "{started:?}");
+    assert!(w.counters().in_place >= 3, "{:?}", w.counters());
+}
+
+#[test]
+fn a_plan_to_the_goal_is_walked_no_further_than_a_step_when_no_newer_plan_comes() {
+    // A plan that reaches the goal (its last steps padding), then nothing: the planner that
+    // made it gone. Only its first step is walked; then in place, then the robot stands.
+    let mut w = walker();
+    let p = plan_from(&w, 0.0, 0, 5, 2);
+    assert_eq!(w.on_plan(&p, 0.0, &ok, &any), Verdict::Taken(1));
+    let mut t = 0.0;
+    while t < 20.0 {
+        w.tick(t, &any);
+        t += 0.01;
+    }
+    assert!(w.standing(t));
+    let moved: Vec<i64> = w
+        .pattern()
+        .timeline
+        .steps
+        .iter()
+        .filter(|s| !s.footstep.padding && (s.footstep.place[0] - s.from[0]).abs() > 0.05)
+        .map(|s| s.footstep.number)
+        .collect();
+    let feet = w.pattern().timeline.feet_end;
+    assert!(
+        feet[0][0].max(feet[1][0]) < 0.2,
+        "walked beyond the first step: {feet:?}, {moved:?}"
+    );
+    let c = w.counters();
+    assert!(c.in_place > 0 && c.stops == 1, "{c:?}");
 }
