@@ -549,7 +549,7 @@ impl GaitApp {
     /// the stream goes on from the last row sent, or, standing quiet, stays quiet.
     fn adopt(&mut self, plan: JointPlan, t: f64) {
         let stab = self.stabiliser_now();
-        let stream_end = self.stream_end();
+        let stream_end = self.stream_end(t);
         if let Body::Archie { walker, joints, .. } = &mut self.body {
             let rows = Rows::of_plan(walker.pattern().timeline.start, &plan, stab);
             if stream_end.is_some_and(|e| (rows.times[0] - e).abs() < 1e-6) {
@@ -577,12 +577,13 @@ impl GaitApp {
         }
     }
 
-    /// The time of the last row sent to the trajectory bridges, while a stream runs.
-    fn stream_end(&self) -> Option<f64> {
+    /// The time of the last row sent to the trajectory bridges, while a stream runs at `t`
+    /// (not once its last row has passed: a pattern then starts from now, not back there).
+    fn stream_end(&self, t: f64) -> Option<f64> {
         if self.quiet {
             return None;
         }
-        self.sent.map(|i| self.rows.times[i])
+        self.sent.map(|i| self.rows.times[i]).filter(|&e| e >= t)
     }
 
     fn stabiliser_now(&self) -> [f64; 2] {
@@ -647,7 +648,7 @@ impl GaitApp {
             .chain(self.stops.try_iter())
             .collect();
         for c in commands {
-            let stream_end = self.stream_end();
+            let stream_end = self.stream_end(t);
             match (c.command, &mut self.body) {
                 (GaitCommandT::COMMAND_STOP, Body::Archie { walker, legs, .. }) => {
                     tracing::info!("stop: {}", c.reason);
@@ -864,7 +865,7 @@ impl GaitApp {
 
     /// Takes plans and keeps the walk going (Archie).
     fn walk(&mut self, node: &Node, t: f64, now: Instant) {
-        let stream_end = self.stream_end();
+        let stream_end = self.stream_end(t);
         let Body::Archie {
             legs,
             walker,
@@ -928,8 +929,14 @@ impl GaitApp {
         ) {
             if let Some(j) = cache.borrow_mut().take() {
                 adopt = Some(j);
-            } else if let Ok(j) = legs.joints(walker.pattern()) {
-                adopt = Some(j);
+            } else {
+                match legs.joints(walker.pattern()) {
+                    Ok(j) => adopt = Some(j),
+                    // The walker's own stand, unchecked: the rows already made go on.
+                    Err(e) => tracing::error!(
+                        "the walker's stand is beyond the legs ({e}): the rows made go on"
+                    ),
+                }
             }
         }
         let standing = walker.standing(t);
@@ -1040,7 +1047,7 @@ impl GaitApp {
                     "{joint} is {d:.3} rad from where the pattern has it (at most {}): stopped",
                     self.cfg.track_tolerance
                 );
-                let stream_end = self.stream_end();
+                let stream_end = self.stream_end(t);
                 if let Body::Archie { walker, legs, .. } = &mut self.body {
                     walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
                     if let Ok(j) = legs.joints(walker.pattern()) {
@@ -1177,7 +1184,7 @@ impl Tick for GaitApp {
         // ends (the Elmo bridge decelerates a chunk that ends in motion; the set-point bridges
         // hold).
         let t = self.time(Instant::now());
-        let stream_end = self.stream_end();
+        let stream_end = self.stream_end(t);
         let walking = match &mut self.body {
             Body::Archie { walker, .. } if self.phase == Phase::Ready && !walker.standing(t) => {
                 walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
