@@ -1,0 +1,253 @@
+#!/usr/bin/env python3
+"""scripts/bench system, run inside the private network namespace scripts/bench makes.
+
+Two computers are made of network namespaces, as the multi-host tests make them: "robot" and
+"laptop" on one bridge (one Wi-Fi: multicast passes), or each on its own subnet behind this
+namespace as a router (unicast passes, multicast does not). Then, side by side in one run:
+
+- the Zenoh hop: LCM round trips and a one-way stream between the two computers, directly
+  over multicast (one Wi-Fi) and through two stride-zenoh-bridges (routed); the bridged round
+  trip crosses two bridges each way, so a hop adds half of the difference;
+- each app's CPU at idle: Archie's simulated robot launched (stride launch archie --sim) and
+  left standing, the deputy's 1 Hz status of each app averaged over a window.
+
+Prints the tables (Markdown) on stdout; progress on stderr.
+"""
+
+import argparse
+import json
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+REL = ROOT / "target" / "release"
+PERF = REL / "examples" / "lcm_perf"
+
+
+def log(*a):
+    print(*a, file=sys.stderr, flush=True)
+
+
+def sh(cmd):
+    r = subprocess.run(["sh", "-c", cmd], capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"{cmd}: {r.stderr.strip()}")
+
+
+class Hosts:
+    """robot and laptop namespaces, bridged (one Wi-Fi) or routed (two subnets)."""
+
+    def __init__(self, routed, tag):
+        self.routed = routed
+        self.tag = tag
+        self.names = ["robot", "laptop"]
+        if routed:
+            sh("sysctl -qw net.ipv4.ip_forward=1")
+        else:
+            sh(f"ip link add bench{tag} type bridge mcast_snooping 0 && ip link set bench{tag} up")
+        for i, name in enumerate(self.names):
+            ns, veth = self.ns(name), f"v{name[0]}{tag}"
+            sh(f"ip netns add {ns} && ip link add {veth} type veth peer name eth0 netns {ns} && "
+               f"ip -n {ns} link set lo up && ip -n {ns} link set eth0 up")
+            if routed:
+                n = i + 1
+                sh(f"ip addr add 10.78.{n}.1/24 dev {veth} && ip link set {veth} up && "
+                   f"ip -n {ns} addr add 10.78.{n}.2/24 dev eth0 && "
+                   f"ip -n {ns} route add default via 10.78.{n}.1")
+            else:
+                sh(f"ip link set {veth} master bench{tag} up && "
+                   f"ip -n {ns} addr add 10.79.0.{i + 1}/24 dev eth0")
+            sh(f"ip -n {ns} route add 224.0.0.0/4 dev eth0")
+
+    def ns(self, name):
+        return f"bench-{name}-{self.tag}"
+
+    def on(self, name, *cmd):
+        return ["ip", "netns", "exec", self.ns(name), *map(str, cmd)]
+
+    def close(self):
+        for name in self.names:
+            subprocess.run(["ip", "netns", "del", self.ns(name)], capture_output=True)
+        subprocess.run(["ip", "link", "del", f"bench{self.tag}"], capture_output=True)
+
+
+URL = "udpm://239.255.76.67:7667?ttl=1&recv_buf_size=4194304"
+
+
+def bridge_config(path, bus, listen, connect):
+    path.write_text(
+        f'bus = "{bus}"\nin = ["PERF_.*"]\n[zenoh]\nlisten = {json.dumps(listen)}\n'
+        f'connect = {json.dumps(connect)}\n[[out]]\npattern = "PERF_.*"\n')
+
+
+def perf_runs(hosts, sizes, count, streams):
+    """Round trips (laptop pings, robot pongs) and streams (laptop sends, robot sinks)."""
+    out = {"latency": {}, "throughput": {}}
+    for size in sizes:
+        pong = subprocess.Popen(hosts.on("robot", PERF, "pong", URL))
+        time.sleep(0.3)
+        r = subprocess.run(hosts.on("laptop", PERF, "ping", URL, size, count),
+                           capture_output=True, text=True, timeout=300)
+        pong.kill()
+        pong.wait()
+        m = dict(kv.split("=", 1) for kv in r.stdout.split() if "=" in kv)
+        if "rtt_ns" not in m:
+            raise SystemExit(f"lcm_perf ping {size}: {r.stdout}{r.stderr}")
+        rtt = [int(x) / 1e3 for x in m["rtt_ns"].split(",") if x]
+        out["latency"][size] = {"rtt": rtt, "lost": int(m["lost"])}
+    for size, n, window in streams:
+        sink = subprocess.Popen(hosts.on("robot", PERF, "sink", URL))
+        time.sleep(0.3)
+        r = subprocess.run(hosts.on("laptop", PERF, "source", URL, size, n, window),
+                           capture_output=True, text=True, timeout=300)
+        sink.kill()
+        sink.wait()
+        m = dict(kv.split("=", 1) for kv in r.stdout.split() if "=" in kv)
+        out["throughput"][(size, window)] = m
+    return out
+
+
+def pct(v, p):
+    v = sorted(v)
+    if not v:
+        return float("nan")
+    k = max(1, min(len(v), int(p / 100 * len(v) + 0.999999)))
+    return v[k - 1]
+
+
+def zenoh_bench(count):
+    sizes = [100, 10_000]
+    streams = [(100, 20_000, 8), (100, 20_000, 64), (10_000, 5_000, 8), (10_000, 5_000, 32)]
+    log(f"zenoh: direct LCM between two hosts on one bridge ({count} round trips a size)")
+    direct_hosts = Hosts(False, "d")
+    try:
+        direct = perf_runs(direct_hosts, sizes, count, streams)
+    finally:
+        direct_hosts.close()
+    log("zenoh: the same through two stride-zenoh-bridges, two subnets routed")
+    routed = Hosts(True, "z")
+    procs = []
+    try:
+        tmp = Path(tempfile.mkdtemp())
+        bridge_config(tmp / "robot.toml", "robot", ["tcp/10.78.1.2:7447"], [])
+        bridge_config(tmp / "laptop.toml", "laptop", [], ["tcp/10.78.1.2:7447"])
+        for host in ["robot", "laptop"]:
+            procs.append(subprocess.Popen(
+                routed.on(host, REL / "stride-zenoh-bridge", "--lcm-url", URL, "--log-level",
+                          "warn", "--config", tmp / f"{host}.toml")))
+        time.sleep(2.0)
+        bridged = perf_runs(routed, sizes, count, streams)
+    finally:
+        for p in procs:
+            p.terminate()
+            p.wait()
+        routed.close()
+    rows = ["| message | direct p50 | direct p99 | bridged p50 | bridged p99 | a hop adds, p99 "
+            "| bar | verdict |", "|---|---|---|---|---|---|---|---|"]
+    verdicts = []
+    for size in sizes:
+        d, b = direct["latency"][size]["rtt"], bridged["latency"][size]["rtt"]
+        hop = (pct(b, 99) - pct(d, 99)) / 2
+        ok = hop < 1000
+        verdicts.append(ok)
+        rows.append(f"| {size} B round trip | {pct(d, 50):.0f} µs | {pct(d, 99):.0f} µs | "
+                    f"{pct(b, 50):.0f} µs | {pct(b, 99):.0f} µs | {hop:.0f} µs | < 1000 µs | "
+                    f"{'meets' if ok else 'MISSES'} |")
+    rows += ["", "| stream | direct | bridged | bridged / direct | not acknowledged, bridged |",
+             "|---|---|---|---|---|"]
+    for size, n, window in streams:
+        d, b = direct["throughput"][(size, window)], bridged["throughput"][(size, window)]
+        dm, bm = float(d.get("msgs_per_s", "nan")), float(b.get("msgs_per_s", "nan"))
+        rows.append(f"| {n} × {size} B, {window} in flight | {dm:,.0f} msg/s "
+                    f"({dm * size / 1e6:.1f} MB/s) | {bm:,.0f} msg/s ({bm * size / 1e6:.1f} MB/s)"
+                    f" | {bm / dm:.2f} | {b.get('lost', '?')} of {n} |")
+    lost = {s: (direct["latency"][s]["lost"], bridged["latency"][s]["lost"]) for s in sizes}
+    rows.append("")
+    rows.append("Round trips lost (direct, bridged): " +
+                ", ".join(f"{s} B {a}, {b}" for s, (a, b) in lost.items()) + ".")
+    return "\n".join(rows), all(verdicts)
+
+
+def idle_cpu(window):
+    """Each app of Archie's simulated robot standing: CPU from the deputy's heartbeats."""
+    log(f"idle: stride launch archie --sim, standing; CPU over {window} s")
+    import tomllib
+    profile = ROOT / "config/launch/archie.toml"
+    url = tomllib.loads(profile.read_text())["lcm_url"]
+    env = dict(os.environ, PATH=f"{REL}:{os.environ['PATH']}")
+    logs = Path(tempfile.mkdtemp())
+    launch = subprocess.Popen(
+        [REL / "stride", "--lcm-url", url, "--log-level", "warn", "launch", profile, "--sim",
+         "--log-dir", logs],
+        env=env, stdout=subprocess.DEVNULL)
+    spy = REL / "stride-spy"
+
+    def reports(secs):
+        r = subprocess.run([spy, "echo", "--lcm-url", url, "--channel", "STRIDE_LAUNCH_STATUS",
+                            "--duration", str(secs)], capture_output=True, text=True, env=env,
+                           timeout=secs + 30)
+        out = []
+        for line in r.stdout.splitlines():
+            try:
+                m = json.loads(line)
+            except ValueError:
+                continue
+            out.append(m.get("message", m))
+        return out
+
+    try:
+        # Every app running, then settled (the legs at the gait's pose, the planner's world in).
+        deadline = time.time() + 120
+        while time.time() < deadline:
+            if launch.poll() is not None:
+                raise SystemExit(f"stride launch archie --sim ended: {launch.returncode}")
+            last = reports(2)
+            apps = last[-1]["apps"] if last else []
+            if apps and all(a["state"] == 2 for a in apps):
+                break
+        time.sleep(15)
+        samples = {}
+        for m in reports(window):
+            for a in m["apps"]:
+                samples.setdefault(a["name"], []).append(100.0 * float(a["cpu"]))
+    finally:
+        launch.send_signal(2)
+        try:
+            launch.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            launch.kill()
+    rows = ["| app | CPU at idle (mean) | max of a second | bar | verdict |", "|---|---|---|---|---|"]
+    ok_all = True
+    for name, v in sorted(samples.items()):
+        mean = statistics.mean(v)
+        ok = mean < 1.0
+        ok_all &= ok
+        rows.append(f"| {name} | {mean:.2f} % | {max(v):.2f} % | < 1 % | "
+                    f"{'meets' if ok else 'MISSES'} |")
+    return "\n".join(rows), ok_all
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--count", type=int, default=2000)
+    ap.add_argument("--idle-secs", type=int, default=30)
+    ap.add_argument("parts", nargs="*", default=["zenoh", "idle"])
+    a = ap.parse_args()
+    out = []
+    if "zenoh" in a.parts:
+        table, ok = zenoh_bench(a.count)
+        out.append("### The Zenoh hop against direct LCM\n\n" + table)
+    if "idle" in a.parts:
+        table, ok = idle_cpu(a.idle_secs)
+        out.append("### Each app's CPU at idle (Archie's simulated robot, standing)\n\n" + table)
+    print("\n\n".join(out))
+
+
+if __name__ == "__main__":
+    main()
