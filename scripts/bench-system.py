@@ -9,7 +9,11 @@ namespace as a router (unicast passes, multicast does not). Then, side by side i
   over multicast (one Wi-Fi) and through two stride-zenoh-bridges (routed); the bridged round
   trip crosses two bridges each way, so a hop adds half of the difference;
 - each app's CPU at idle: Archie's simulated robot launched (stride launch archie --sim) and
-  left standing, the deputy's 1 Hz status of each app averaged over a window.
+  left standing, the deputy's 1 Hz status of each app averaged over a window;
+- the stages of a replanned walk, on one host and split (the planner on the laptop, the rest
+  on the robot, one Wi-Fi): Archie's case 7 walked to its goal while lcm-logger records, each
+  stage's time from the headers of the messages that begin and end it (one clock: the
+  namespaces share the machine's).
 
 Prints the tables (Markdown) on stdout; progress on stderr.
 """
@@ -73,6 +77,7 @@ class Hosts:
 
     def close(self):
         for name in self.names:
+            subprocess.run(["ip", "link", "del", f"v{name[0]}{self.tag}"], capture_output=True)
             subprocess.run(["ip", "netns", "del", self.ns(name)], capture_output=True)
         subprocess.run(["ip", "link", "del", f"bench{self.tag}"], capture_output=True)
 
@@ -233,11 +238,143 @@ def idle_cpu(window):
     return "\n".join(rows), ok_all
 
 
+STAGE_CHANNELS = "WALK_GOAL|FOOTSTEP_PLAN_REQUEST|FOOTSTEP_PLAN|GAIT_STATUS|JOINT_TRAJECTORY_LEFT_LEG"
+
+
+def decoded(log):
+    """(channel, message) of a log's stage channels, in order, by stride-spy."""
+    r = subprocess.run([REL / "stride-spy", "echo", "--log", log, "--channel", STAGE_CHANNELS],
+                       capture_output=True, text=True, timeout=300)
+    out = []
+    for line in r.stdout.splitlines():
+        try:
+            m = json.loads(line)
+        except ValueError:
+            continue
+        out.append((m["channel"], m["message"]))
+    return out
+
+
+def stages_of(log):
+    """Each plan's stages, ms: request to plan (the planner, with the bus both ways), plan to
+    taken (the gait's pattern, joints and checks: its status says accepted), taken to the next
+    trajectory chunk sent; and the goal to the first request."""
+    msgs = decoded(log)
+    requests, out = {}, {"request→plan": [], "plan→taken": [], "taken→next chunk": [],
+                         "goal→first request": []}
+    goal_t = None
+    accepted = None
+    pending = []  # plans not yet taken: their header times
+    taken_at = None
+    for ch, m in msgs:
+        t = m["header"]["utime"] / 1e3
+        if ch == "WALK_GOAL":
+            goal_t = t
+        elif ch == "FOOTSTEP_PLAN_REQUEST":
+            requests[m["request_id"]] = t
+            if goal_t is not None:
+                out["goal→first request"].append(t - goal_t)
+                goal_t = None
+        elif ch == "FOOTSTEP_PLAN":
+            if m["request_id"] in requests and m["status"] == 0:
+                out["request→plan"].append(t - requests[m["request_id"]])
+                pending.append(t)
+        elif ch == "GAIT_STATUS":
+            a = m["accepted"]
+            if accepted is not None and a > accepted and pending:
+                out["plan→taken"].append(t - pending[-1])
+                taken_at = t
+            pending = []
+            accepted = a
+        elif ch == "JOINT_TRAJECTORY_LEFT_LEG" and taken_at is not None:
+            out["taken→next chunk"].append(t - taken_at)
+            taken_at = None
+    return out
+
+
+def walk_logged(hosts, log, goal, timeout):
+    """Archie's case 7 walked to `goal`, recorded into `log` on the robot's side: on one host
+    (hosts None: this namespace) or split over `hosts`."""
+    env = dict(os.environ, PATH=f"{REL}:{os.environ['PATH']}")
+    logs = Path(tempfile.mkdtemp())
+    if hosts is None:
+        import tomllib
+        profile = ROOT / "config/launch/archie.toml"
+        url = tomllib.loads(profile.read_text())["lcm_url"]
+        on = {"robot": lambda *c: list(map(str, c)), "laptop": lambda *c: list(map(str, c))}
+        deputies = [(["robot"], ["launch", profile, "--sim"])]
+    else:
+        profile = ROOT / "config/launch/archie-split.toml"
+        url = URL
+        on = {h: (lambda h: lambda *c: hosts.on(h, *c))(h) for h in ["robot", "laptop"]}
+        deputies = [(["robot"], ["launch", profile, "--host", "robot", "--sim"]),
+                    (["laptop"], ["launch", profile, "--host", "laptop"])]
+    procs = []
+    for (host,), args in deputies:
+        procs.append(subprocess.Popen(
+            on[host](REL / "stride", "--lcm-url", url, "--log-level", "warn", *args,
+                     "--log-dir", logs / host), env=env, stdout=subprocess.DEVNULL))
+    logger = subprocess.Popen(on["robot"]("lcm-logger", "-q", "-f", "-c", STAGE_CHANNELS,
+                                          f"--lcm-url={url}", log))
+    try:
+        r = subprocess.run(on["laptop"](REL / "stride", "--lcm-url", url, "--log-level", "warn",
+                                        "walk", goal, "--timeout", timeout),
+                           capture_output=True, text=True, env=env, timeout=timeout + 60)
+        summary = r.stdout.strip().splitlines()[0] if r.stdout.strip() else r.stderr.strip()
+    finally:
+        logger.send_signal(2)
+        logger.wait()
+        for p in procs:
+            p.send_signal(2)
+        for p in procs:
+            try:
+                p.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                p.kill()
+    return summary
+
+
+def stages_bench(goal, timeout):
+    tmp = Path(tempfile.mkdtemp())
+    log(f"stages: Archie's case 7 to {goal} on one host")
+    one = walk_logged(None, tmp / "one.lcmlog", goal, timeout)
+    log(f"  {one}")
+    log(f"stages: the same split, the planner on the laptop")
+    hosts = Hosts(False, "s")
+    try:
+        two = walk_logged(hosts, tmp / "split.lcmlog", goal, timeout)
+    finally:
+        hosts.close()
+    log(f"  {two}")
+    a, b = stages_of(tmp / "one.lcmlog"), stages_of(tmp / "split.lcmlog")
+    rows = ["| stage | one host: n, p50, p99 | split: n, p50, p99 | split adds, p99 | bar | verdict |",
+            "|---|---|---|---|---|---|"]
+    verdicts = []
+    for k in ["goal→first request", "request→plan", "plan→taken", "taken→next chunk"]:
+        x, y = a[k], b[k]
+        add = pct(y, 99) - pct(x, 99)
+        if k == "plan→taken":
+            bar, ok = "p99 < 10 ms; split adds < 5 ms", pct(x, 99) < 10 and pct(y, 99) < 10 and add < 5
+        elif k == "request→plan":
+            bar, ok = "split adds < 5 ms", add < 5
+        else:
+            bar, ok = "-", None
+        if ok is not None:
+            verdicts.append(ok)
+        rows.append(f"| {k} | {len(x)}, {pct(x, 50):.1f} ms, {pct(x, 99):.1f} ms | {len(y)}, "
+                    f"{pct(y, 50):.1f} ms, {pct(y, 99):.1f} ms | {add:+.1f} ms | {bar} | "
+                    f"{'-' if ok is None else ('meets' if ok else 'MISSES')} |")
+    rows += ["", f"One host: {one}", "", f"Split: {two}"]
+    return "\n".join(rows), all(verdicts)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--count", type=int, default=2000)
     ap.add_argument("--idle-secs", type=int, default=30)
-    ap.add_argument("parts", nargs="*", default=["zenoh", "idle"])
+    ap.add_argument("--goal", default="5,2")
+    ap.add_argument("--timeout", type=int, default=150)
+    ap.add_argument("parts", nargs="*", default=["zenoh", "idle", "stages"])
     a = ap.parse_args()
     out = []
     if "zenoh" in a.parts:
@@ -246,6 +383,9 @@ def main():
     if "idle" in a.parts:
         table, ok = idle_cpu(a.idle_secs)
         out.append("### Each app's CPU at idle (Archie's simulated robot, standing)\n\n" + table)
+    if "stages" in a.parts:
+        table, ok = stages_bench(a.goal, a.timeout)
+        out.append("### A replanned walk's stages, one host against split\n\n" + table)
     print("\n\n".join(out))
 
 

@@ -272,8 +272,12 @@ impl Hosts {
     const NAMES: [&'static str; 2] = ["robot", "laptop"];
 
     fn new(routed: bool) -> Hosts {
+        // Unique per set of hosts: a test's namespaces and links go away asynchronously once
+        // their processes have ended, and the next test's must not meet them.
+        static NEXT: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed) % 10;
         let h = Hosts {
-            id: std::process::id() % 100_000,
+            id: std::process::id() % 10_000 * 10 + n,
         };
         let sh = |cmd: String| {
             let out = std::process::Command::new("sh")
@@ -394,6 +398,10 @@ impl Hosts {
 impl Drop for Hosts {
     fn drop(&mut self) {
         for name in Self::NAMES {
+            // Both ends of the link at once, then the namespace.
+            let _ = std::process::Command::new("ip")
+                .args(["link", "del", &self.veth(name)])
+                .output();
             let _ = std::process::Command::new("ip")
                 .args(["netns", "del", &self.ns(name)])
                 .status();
