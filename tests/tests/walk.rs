@@ -147,6 +147,7 @@ fn walk_in_closed_loop(
     let launcher = launch(&profile, &url, dir.path());
     let (ok, summary) = walk(&url, goal, timeout);
     let (st, out) = launcher.interrupt();
+    eprintln!("{summary}");
     assert!(ok, "{summary}\n{out}");
     assert!(summary.contains("reached"), "{summary}");
     assert!(summary.contains("collisions 0;"), "{summary}");
@@ -672,11 +673,12 @@ fn on_the_split_profile_a_lost_link_stops_the_robot_within_a_step_and_it_stands(
     let during: Vec<_> = reports.iter().filter(|(t, _)| *t < up).cloned().collect();
     let steps = touchdowns_from(&during, down);
     eprintln!("touch-downs after the link went down (forward?): {steps:?}");
-    // Forward: the step under way, the step the last plan fixed, and the stop (a step no
-    // longer than needed: stopping at once would take the ZMP within its margin). The gait
-    // notices a missing plan one step late, at the earliest.
+    // Forward: the step under way, the step the last plan fixed, and the plan's next step,
+    // which stops the walk (a stop at once would leave the measured motion, which lags the
+    // pattern, no margin); the gait notices a missing plan one step late, at the earliest.
+    // Four touch-downs at most: one may be landing as the link goes.
     let forward = steps.iter().filter(|f| **f).count();
-    assert!(forward <= 3, "{forward} steps forward: {steps:?}");
+    assert!(forward <= 4, "{forward} steps forward: {steps:?}");
     assert!(
         steps.len() > forward,
         "no step in place or to stand: {steps:?}"
@@ -732,11 +734,11 @@ fn on_the_split_profile_a_killed_planner_makes_the_robot_step_in_place_until_it_
     let steps = touchdowns_from(&sim_reports(&log), killed);
     eprintln!("touch-downs after the planner was killed (forward?): {steps:?}");
     // In place after at most the step under way, the step the last plan fixed and the stop
-    // (as with the link lost), then forward again.
+    // (as with the link lost: four touch-downs), then forward again.
     let first_in_place = steps.iter().position(|f| !f);
     assert!(
-        first_in_place.is_some_and(|i| i <= 3),
-        "no step in place within three steps: {steps:?}"
+        first_in_place.is_some_and(|i| i <= 4),
+        "no step in place within four touch-downs: {steps:?}"
     );
     assert!(
         steps[first_in_place.unwrap()..].iter().any(|f| *f),

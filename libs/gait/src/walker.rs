@@ -11,8 +11,9 @@
 //! - a plan with a NaN, a step beyond the per-step limits or a foothold no leg reaches is
 //!   refused with its reason and counted; the robot then steps in place and stands;
 //! - of a plan, only the first `steps_per_plan` steps after the step it was made for are
-//!   walked unless a newer plan comes: a lost planner or link stops the robot's progress
-//!   within a step;
+//!   walked unless a newer plan comes; then its next step stops the walk (shortened if the
+//!   legs need it), the feet come side by side and the robot steps in place: a lost planner
+//!   or link stops the robot's progress within a step of when it is noticed;
 //! - when the taken plan's steps run out before the goal, the robot steps in place, for at
 //!   most `plan_timeout` after the last valid plan; then, or on a stop, it brings its feet
 //!   together and stands. A plan whose remaining steps are all padding, or that says its
@@ -517,13 +518,14 @@ impl Walker {
             });
         if stale {
             self.at_goal = false;
-            // The feet side by side at once, then in place; when that stop is beyond the
-            // pattern's margins (the step under way carries the walk on), the plan's next
-            // step first: it was checked with the plan.
-            let mut done = self.in_place(now, &start, Vec::new(), joints);
-            if let (Err(_), Some(n)) = (&done, ahead.first()) {
+            // The plan's next step (it was checked with the plan), then the feet side by side
+            // and in place: the stop the walk's momentum takes gently (a stop sharper than the
+            // pattern needs leaves the measured motion, which lags it, less margin). Shortened
+            // when the full step is beyond the legs, at once when no step is.
+            let mut done = Err(GaitError::Plan("no step to stop with".into()));
+            if let Some(n) = ahead.first() {
                 let beside = self.together(&start, Vec::new());
-                for share in [0.25, 0.5, 0.75, 1.0] {
+                for share in [1.0, 0.75, 0.5, 0.25] {
                     let mut step = *n;
                     if let Some(b) = beside.first().filter(|b| b.side == n.side) {
                         for i in 0..3 {
@@ -535,6 +537,9 @@ impl Walker {
                         break;
                     }
                 }
+            }
+            if done.is_err() {
+                done = self.in_place(now, &start, Vec::new(), joints);
             }
             return match done {
                 Ok(()) => {
