@@ -317,6 +317,8 @@ def walk_logged(hosts, log, goal, timeout):
     logger = subprocess.Popen(on["robot"]("lcm-logger", "-q", "-f", "-c", STAGE_CHANNELS,
                                           f"--lcm-url={url}", log))
     try:
+        # Every app up and the gait standing at its pose before the goal goes.
+        time.sleep(25)
         r = subprocess.run(on["laptop"](REL / "stride", "--lcm-url", url, "--log-level", "warn",
                                         "walk", goal, "--timeout", timeout),
                            capture_output=True, text=True, env=env, timeout=timeout + 60)
