@@ -363,9 +363,11 @@ def stages_bench(goal, timeout):
             bar, ok = "-", None
         if ok is not None:
             verdicts.append(ok)
-        rows.append(f"| {k} | {len(x)}, {pct(x, 50):.1f} ms, {pct(x, 99):.1f} ms | {len(y)}, "
-                    f"{pct(y, 50):.1f} ms, {pct(y, 99):.1f} ms | {add:+.1f} ms | {bar} | "
-                    f"{'-' if ok is None else ('meets' if ok else 'MISSES')} |")
+        split = (f"{len(y)}, {pct(y, 50):.1f} ms, {pct(y, 99):.1f} ms" if y
+                 else "- (the chunks stay on the robot's own bus)")
+        adds = f"{add:+.1f} ms" if y else "-"
+        rows.append(f"| {k} | {len(x)}, {pct(x, 50):.1f} ms, {pct(x, 99):.1f} ms | {split} | "
+                    f"{adds} | {bar} | {'-' if ok is None else ('meets' if ok else 'MISSES')} |")
     rows += ["", f"One host: {one}", "", f"Split: {two}"]
     return "\n".join(rows), all(verdicts)
 
