@@ -85,6 +85,12 @@ class Hosts:
 URL = "udpm://239.255.76.67:7667?ttl=1&recv_buf_size=4194304"
 
 
+def profile_url(profile):
+    """The LCM URL a launch profile names."""
+    import tomllib
+    return tomllib.loads(profile.read_text())["lcm_url"]
+
+
 def bridge_config(path, bus, listen, connect):
     path.write_text(
         f'bus = "{bus}"\nin = ["PERF_.*"]\n[zenoh]\nlisten = {json.dumps(listen)}\n'
@@ -182,29 +188,17 @@ def zenoh_bench(count):
 def idle_cpu(window):
     """Each app of Archie's simulated robot standing: CPU from the deputy's heartbeats."""
     log(f"idle: stride launch archie --sim, standing; CPU over {window} s")
-    import tomllib
     profile = ROOT / "config/launch/archie.toml"
-    url = tomllib.loads(profile.read_text())["lcm_url"]
+    url = profile_url(profile)
     env = dict(os.environ, PATH=f"{REL}:{os.environ['PATH']}")
     logs = Path(tempfile.mkdtemp())
     launch = subprocess.Popen(
         [REL / "stride", "--lcm-url", url, "--log-level", "warn", "launch", profile, "--sim",
          "--log-dir", logs],
         env=env, stdout=subprocess.DEVNULL)
-    spy = REL / "stride-spy"
-
     def reports(secs):
-        r = subprocess.run([spy, "echo", "--lcm-url", url, "--channel", "STRIDE_LAUNCH_STATUS",
-                            "--duration", str(secs)], capture_output=True, text=True, env=env,
-                           timeout=secs + 30)
-        out = []
-        for line in r.stdout.splitlines():
-            try:
-                m = json.loads(line)
-            except ValueError:
-                continue
-            out.append(m.get("message", m))
-        return out
+        return [m for _, m in spy_echo("--lcm-url", url, "--channel", "STRIDE_LAUNCH_STATUS",
+                                       "--duration", secs, timeout=secs + 30)]
 
     try:
         # Every app running, then settled (the legs at the gait's pose, the planner's world in).
@@ -241,10 +235,10 @@ def idle_cpu(window):
 STAGE_CHANNELS = "WALK_GOAL|FOOTSTEP_PLAN_REQUEST|FOOTSTEP_PLAN|GAIT_STATUS|JOINT_TRAJECTORY_LEFT_LEG"
 
 
-def decoded(log):
-    """(channel, message) of a log's stage channels, in order, by stride-spy."""
-    r = subprocess.run([REL / "stride-spy", "echo", "--log", log, "--channel", STAGE_CHANNELS],
-                       capture_output=True, text=True, timeout=300)
+def spy_echo(*args, timeout=300):
+    """(channel, message) of each JSON line `stride-spy echo ARGS` prints, in order."""
+    r = subprocess.run([REL / "stride-spy", "echo", *map(str, args)], capture_output=True,
+                       text=True, timeout=timeout)
     out = []
     for line in r.stdout.splitlines():
         try:
@@ -253,6 +247,11 @@ def decoded(log):
             continue
         out.append((m["channel"], m["message"]))
     return out
+
+
+def decoded(log):
+    """(channel, message) of a log's stage channels, in order, by stride-spy."""
+    return spy_echo("--log", log, "--channel", STAGE_CHANNELS)
 
 
 def stages_of(log):
@@ -298,9 +297,8 @@ def walk_logged(hosts, log, goal, timeout):
     env = dict(os.environ, PATH=f"{REL}:{os.environ['PATH']}")
     logs = Path(tempfile.mkdtemp())
     if hosts is None:
-        import tomllib
         profile = ROOT / "config/launch/archie.toml"
-        url = tomllib.loads(profile.read_text())["lcm_url"]
+        url = profile_url(profile)
         on = {"robot": lambda *c: list(map(str, c)), "laptop": lambda *c: list(map(str, c))}
         deputies = [(["robot"], ["launch", profile, "--sim"])]
     else:

@@ -503,19 +503,19 @@ impl Walker {
         // The next step of the plan is further from its echo than a plan is walked (none
         // came for the steps since, even one that reaches the goal): in place instead.
         // Decided when the step is about to be fixed (a plan may come until then).
-        let decide = self.pattern.samples[k].t + STALE_DECISION;
-        let next_start = self
-            .pattern
-            .timeline
-            .steps
-            .iter()
-            .find(|s| s.start > self.pattern.samples[k].t)
-            .map(|s| s.start);
+        let t = self.pattern.samples[k].t;
         let stale = self.following
-            && next_start.is_some_and(|s| s <= decide)
-            && ahead.first().is_some_and(|f| {
-                !f.padding && f.number > self.last_echo + i64::from(self.cfg.steps_per_plan)
-            });
+            && self
+                .pattern
+                .timeline
+                .steps
+                .iter()
+                .find(|s| s.start > t)
+                .is_some_and(|s| {
+                    s.start <= t + STALE_DECISION
+                        && !s.footstep.padding
+                        && s.footstep.number > self.last_echo + i64::from(self.cfg.steps_per_plan)
+                });
         if stale {
             self.at_goal = false;
             // The plan's next step (it was checked with the plan), then the feet side by side
@@ -550,10 +550,8 @@ impl Walker {
                 Err(e) => {
                     // Neither: feet together and stand, as on a plan timeout (the next step
                     // is decided again if the pattern cannot change).
-                    self.counters.stops += 1;
-                    self.note = format!("no plan for the next step, none in place ({e}): standing");
-                    let steps = self.together(&start, Vec::new());
-                    if self.replace(now, steps, &|_| Ok(())).is_ok() {
+                    let note = format!("no plan for the next step, none in place ({e}): standing");
+                    if self.stand_now(now, &start, Vec::new(), note) {
                         self.at_goal = true;
                         self.following = false;
                     }
@@ -568,16 +566,23 @@ impl Walker {
         if now - self.last_valid > self.cfg.plan_timeout {
             self.at_goal = true;
             self.following = false;
-            self.counters.stops += 1;
-            self.note = format!(
+            let note = format!(
                 "no valid plan for {} s: feet together, standing",
                 self.cfg.plan_timeout
             );
-            let steps = self.together(&start, ahead);
-            let _ = self.replace(now, steps, &|_| Ok(()));
+            self.stand_now(now, &start, ahead, note);
             return true;
         }
         self.in_place(now, &start, ahead, joints).is_ok()
+    }
+
+    /// Stands after `steps` with the feet side by side, unchecked (a stand must happen),
+    /// counted as a stop with `note`; whether the pattern changed.
+    fn stand_now(&mut self, now: f64, start: &Start, steps: Vec<Footstep>, note: String) -> bool {
+        self.counters.stops += 1;
+        self.note = note;
+        let steps = self.together(start, steps);
+        self.replace(now, steps, &|_| Ok(())).is_ok()
     }
 
     /// Makes the pattern `steps`, then the feet side by side (in place from a long stride is
