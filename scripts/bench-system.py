@@ -232,7 +232,8 @@ def idle_cpu(window):
     return "\n".join(rows), ok_all
 
 
-STAGE_CHANNELS = "WALK_GOAL|FOOTSTEP_PLAN_REQUEST|FOOTSTEP_PLAN|GAIT_STATUS|JOINT_TRAJECTORY_LEFT_LEG"
+STAGE_CHANNELS = ("WALK_GOAL|FOOTSTEP_PLAN_REQUEST|FOOTSTEP_PLAN|GAIT_STATUS|"
+                  "JOINT_TRAJECTORY_LEFT_LEG|OBSTACLES")
 
 
 def spy_echo(*args, timeout=300):
@@ -291,18 +292,97 @@ def stages_of(log):
     return out
 
 
-def walk_logged(hosts, log, goal, timeout):
-    """Archie's case 7 walked to `goal`, recorded into `log` on the robot's side: on one host
-    (hosts None: this namespace) or split over `hosts`."""
+def edited_profile(profile, sim_config):
+    """A copy of `profile` whose simulated world reads `sim_config` (every other path kept)."""
+    tmp = Path(tempfile.mkdtemp())
+    text = profile.read_text().replace('"../sim-archie.toml"', f'"{sim_config}"')
+    text = text.replace('"../', f'"{ROOT}/config/')
+    out = tmp / profile.name
+    out.write_text(text)
+    return out
+
+
+def obstacle_world(trials, length):
+    """A flat corridor `length` m long (no obstacle at the start) and the simulated world's
+    configuration for it: a 0.25 x 0.25 x 1 m box appears 1 m ahead of the pelvis at every
+    second touch-down from the fourth, `trials` of them; perception without delay (the
+    obstacles' header is when they were seen)."""
+    tmp = Path(tempfile.mkdtemp())
+    scene = tmp / "corridor.toml"
+    scene.write_text(
+        'name = "bench-corridor"\n'
+        'description = "a flat corridor; boxes appear ahead of the robot as it walks"\n'
+        'reference = "scripts/bench system"\n'
+        'start = { x = 0.0, y = 0.0, yaw = 0.0 }\n'
+        f'goal = {{ x = {length - 1.0}, y = 0.0 }}\n'
+        f'[map]\nx = [-1.0, {length}]\ny = [-4.0, 4.0]\n')
+    text = (ROOT / "config/sim-archie.toml").read_text()
+    text = re.sub(r'^scene = .*$', f'scene = "{scene}"', text, count=1, flags=re.M)
+    text = re.sub(r'^robot_file = .*$', f'robot_file = "{ROOT}/config/robots/archie.toml"', text,
+                  count=1, flags=re.M)
+    text = re.sub(r'^delay = .*$', 'delay = 0.0', text, count=1, flags=re.M)
+    for k in range(trials):
+        text += (f"\n[[appear]]\nafter_touchdowns = {4 + 2 * k}\nahead = 1.0\n"
+                 "size = [0.25, 0.25, 1.0]\n")
+    cfg = tmp / "sim.toml"
+    cfg.write_text(text)
+    return cfg
+
+
+def obstacle_stages_of(log):
+    """Each box's stages, ms: seen (the first obstacle list with its id) to the first plan
+    searched after it (its header less its preparation and search: a plan made in the world
+    with the box), to the gait's status that counts a plan taken, to the next trajectory
+    chunk; and the whole, seen to that chunk (the first set-point of a plan avoiding it)."""
+    known, seen = set(), None
+    out = {"seen→plan": [], "plan→taken": [], "taken→chunk": [], "seen→first set-point": []}
+    trial = None  # [seen, plan, taken]
+    accepted = None
+    for ch, m in decoded(log):
+        t = m["header"]["utime"] / 1e3
+        if ch == "OBSTACLES":
+            ids = {o["id"] for o in m["obstacles"]}
+            new = ids - known
+            known |= ids
+            if new and seen is not None and trial is None:
+                trial = [t, None, None]
+            seen = t
+        elif ch == "FOOTSTEP_PLAN" and trial and trial[1] is None and m["status"] == 0:
+            began = t - (m["prepare_time_us"] + m["search_time_us"]) / 1e3
+            if began >= trial[0]:
+                trial[1] = t
+        elif ch == "GAIT_STATUS":
+            a = m["accepted"]
+            if trial and trial[1] is not None and trial[2] is None and accepted is not None \
+                    and a > accepted:
+                trial[2] = t
+            accepted = a
+        elif ch == "JOINT_TRAJECTORY_LEFT_LEG" and trial and trial[2] is not None:
+            s0, p, k = trial
+            out["seen→plan"].append(p - s0)
+            out["plan→taken"].append(k - p)
+            out["taken→chunk"].append(t - k)
+            out["seen→first set-point"].append(t - s0)
+            trial = None
+    return out
+
+
+def walk_logged(hosts, log, goal, timeout, sim_config=None):
+    """Archie walked to `goal` (case 7, or the world of `sim_config`), recorded into `log` on
+    the robot's side: on one host (hosts None: this namespace) or split over `hosts`."""
     env = dict(os.environ, PATH=f"{REL}:{os.environ['PATH']}")
     logs = Path(tempfile.mkdtemp())
     if hosts is None:
         profile = ROOT / "config/launch/archie.toml"
+        if sim_config:
+            profile = edited_profile(profile, sim_config)
         url = profile_url(profile)
         on = {"robot": lambda *c: list(map(str, c)), "laptop": lambda *c: list(map(str, c))}
         deputies = [(["robot"], ["launch", profile, "--sim"])]
     else:
         profile = ROOT / "config/launch/archie-split.toml"
+        if sim_config:
+            profile = edited_profile(profile, sim_config)
         url = URL
         on = {h: (lambda h: lambda *c: hosts.on(h, *c))(h) for h in ["robot", "laptop"]}
         deputies = [(["robot"], ["launch", profile, "--host", "robot", "--sim"]),
@@ -370,13 +450,44 @@ def stages_bench(goal, timeout):
     return "\n".join(rows), all(verdicts)
 
 
+def obstacle_bench(trials):
+    """Boxes appearing ahead of the walking robot, on one host and split: seen to the first
+    set-point of a plan avoiding each."""
+    length = round(0.3 * (4 + 2 * trials) + 3.0, 1)
+    sim = obstacle_world(trials, length)
+    goal = f"{length - 1.0},0"
+    timeout = int(60 + 3 * (4 + 2 * trials))
+    tmp = Path(tempfile.mkdtemp())
+    log(f"obstacles: {trials} boxes appear on a {length} m corridor, one host")
+    one = walk_logged(None, tmp / "one.lcmlog", goal, timeout, sim)
+    log(f"  {one}")
+    log("obstacles: the same split, the planner on the laptop")
+    hosts = Hosts(False, "o")
+    try:
+        two = walk_logged(hosts, tmp / "split.lcmlog", goal, timeout, sim)
+    finally:
+        hosts.close()
+    log(f"  {two}")
+    a, b = obstacle_stages_of(tmp / "one.lcmlog"), obstacle_stages_of(tmp / "split.lcmlog")
+    rows = ["| stage | one host: n, p50, p99 | split: n, p50, p99 | split adds, p99 |",
+            "|---|---|---|---|"]
+    for k in ["seen→plan", "plan→taken", "taken→chunk", "seen→first set-point"]:
+        x, y = a[k], b[k]
+        cell = lambda v: f"{len(v)}, {pct(v, 50):.1f} ms, {pct(v, 99):.1f} ms" if v else "0"
+        add = f"{pct(y, 99) - pct(x, 99):+.1f} ms" if x and y else "-"
+        rows.append(f"| {k} | {cell(x)} | {cell(y)} | {add} |")
+    rows += ["", f"One host: {one}", "", f"Split: {two}"]
+    return "\n".join(rows)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--count", type=int, default=2000)
     ap.add_argument("--idle-secs", type=int, default=30)
     ap.add_argument("--goal", default="5,2")
     ap.add_argument("--timeout", type=int, default=150)
-    ap.add_argument("parts", nargs="*", default=["zenoh", "idle", "stages"])
+    ap.add_argument("--obstacles", type=int, default=100, help="boxes appearing (trials)")
+    ap.add_argument("parts", nargs="*", default=["zenoh", "idle", "stages", "obstacles"])
     a = ap.parse_args()
     out = []
     if "zenoh" in a.parts:
@@ -388,6 +499,10 @@ def main():
     if "stages" in a.parts:
         table, ok = stages_bench(a.goal, a.timeout)
         out.append("### A replanned walk's stages, one host against split\n\n" + table)
+    if "obstacles" in a.parts:
+        table = obstacle_bench(a.obstacles)
+        out.append("### An obstacle appearing to the first set-point of a plan avoiding it\n\n"
+                   + table)
     print("\n\n".join(out))
 
 

@@ -227,8 +227,10 @@ fn kaists_b7_a_box_that_appears_a_metre_ahead_is_walked_around() {
 #[test]
 #[ignore = "multicast: scripts/test runs it in a private network namespace"]
 fn the_hexapod_walks_its_tripod_gait_through_the_dynamixel_bridge() {
-    // `stride launch hexapod --sim` (the bridge's 18 simulated AX-12A servos, the gait) and
-    // `stride step 0.2`: the walk is taken, ends, and the servos follow their set-points.
+    // `stride launch hexapod --sim` (the bridge's 18 simulated AX-12A servos, the gait, the
+    // simulated world reading the servos' true positions) and `stride step 0.2`: the walk is
+    // taken, ends, the servos follow their set-points, and the simulated body moved ahead
+    // what was asked without a fall.
     require_sandbox();
     let _one = ONE_WALK.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
@@ -257,6 +259,9 @@ fn the_hexapod_walks_its_tripod_gait_through_the_dynamixel_bridge() {
     );
     let samples = number_after(&summary, "rad over");
     assert!(samples > 100.0, "{summary}");
+    let ahead = number_after(&summary, "the simulated body moved ");
+    assert!((ahead - 0.2).abs() <= 0.05, "{summary}");
+    assert!(summary.contains("falls 0, collisions 0"), "{summary}");
     assert!(st.success(), "the launcher's shutdown: {log}");
 }
 

@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use stride_fakes::due::{DueConfig, DueLevers, FakeDue};
 use stride_fakes::Sim;
-use stride_lcmtypes::stride::{JointCommandT, NodeStatusT};
+use stride_lcmtypes::stride::{JointCommandT, JointStateT, NodeStatusT};
 use stride_link::{JointCommand, Message, Mode};
 use stride_link_host::Session;
 use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
@@ -30,6 +30,10 @@ use crate::{imu_msg, state_msgs, Attitude, LinkConfig, ACCEL_COUNTS_PER_G, GYRO_
 pub struct Cli {
     #[command(flatten)]
     node: NodeArgs,
+    /// With port = "sim": publish the fake board's true joint positions (rad) on this
+    /// sim-only channel each cycle, for the simulated world.
+    #[arg(long, value_name = "CHANNEL")]
+    pub true_state_channel: Option<String>,
 }
 
 stride_node::node_cli!(Cli);
@@ -63,11 +67,17 @@ pub struct ArduinoApp {
     braked_by_host: [bool; 8],
     /// The last reason the board could not be reached, said once on the console.
     last_failure: String,
+    /// The fake board's levers (its true positions) and where they go
+    /// (`--true-state-channel`).
+    truth: Option<(DueLevers, String, Stamper)>,
 }
 
 impl ArduinoApp {
     /// Subscribes; the board is connected on the first tick.
-    pub fn start(node: &Node, cfg: LinkConfig) -> anyhow::Result<ArduinoApp> {
+    pub fn start(node: &Node, cfg: LinkConfig, cli: &Cli) -> anyhow::Result<ArduinoApp> {
+        if cli.true_state_channel.is_some() && cfg.port != LineSpec::Sim {
+            anyhow::bail!("--true-state-channel needs port = \"sim\" (a fake board to measure)");
+        }
         let (sub, rx) = node.queue::<JointCommandT>(&cfg.command_channel)?;
         node.set_health(NodeStatusT::STATE_STARTING, "connecting to the board");
         let now = Instant::now();
@@ -87,6 +97,10 @@ impl ArduinoApp {
             rejected: 0,
             braked_by_host: [false; 8],
             last_failure: String::new(),
+            truth: cli
+                .true_state_channel
+                .clone()
+                .map(|c| (DueLevers::default(), c, Stamper::new(&cfg.board))),
             cfg,
         })
     }
@@ -98,7 +112,11 @@ impl ArduinoApp {
             self.session = None;
             let mut sim = Sim::new();
             let board = FakeDue::new(DueConfig::default());
-            sim.add(board.spawn(Paced::new(dev), DueLevers::default(), sim.flag()));
+            let levers = self
+                .truth
+                .as_ref()
+                .map_or_else(DueLevers::default, |t| t.0.clone());
+            sim.add(board.spawn(Paced::new(dev), levers, sim.flag()));
             self.sim = Some(sim);
             return Ok(Box::new(host));
         }
@@ -293,6 +311,24 @@ impl Tick for ArduinoApp {
             );
             self.session = None;
             self.next_try = Instant::now() + Duration::from_millis(self.cfg.reconnect_ms);
+        }
+        if let (Some((levers, channel, stamper)), Some(_)) = (&mut self.truth, &self.sim) {
+            let mut m = JointStateT {
+                header: stamper.stamp(),
+                ..Default::default()
+            };
+            for j in &self.cfg.joint {
+                m.names.push(j.name.clone());
+                m.positions.push(levers.position(j.index as usize));
+                m.velocities.push(f64::NAN);
+                m.currents.push(f64::NAN);
+                m.temperatures.push(f32::NAN);
+                m.faults.push(0);
+            }
+            m.num_joints = m.names.len() as i32;
+            if let Err(e) = node.lcm().publish(channel, &m) {
+                tracing::warn!(error = %e, "could not publish the true joint positions");
+            }
         }
         Ok(self.period.next(now))
     }

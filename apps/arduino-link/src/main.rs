@@ -6,7 +6,7 @@ use stride_node::Launch;
 fn main() -> std::process::ExitCode {
     stride_node::main("stride-arduino-link", |l: Launch<Cli, LinkConfig>| {
         let node = l.start()?;
-        let app = ArduinoApp::start(&node, l.cfg)?;
+        let app = ArduinoApp::start(&node, l.cfg, &l.cli)?;
         node.run(app)
     })
 }

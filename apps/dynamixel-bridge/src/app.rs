@@ -6,9 +6,9 @@ use anyhow::Context;
 use stride_dynamixel::{models, Protocol};
 use stride_dynamixel_bus::{Bus, BusConfig};
 use stride_dynamixel_chain::Chain;
-use stride_fakes::dynamixel::{ChainLevers, FakeChain, Servo};
+use stride_fakes::dynamixel::{ChainLevers, ChainProbe, FakeChain, Servo};
 use stride_fakes::Sim;
-use stride_lcmtypes::stride::{JointCommandT, NodeStatusT};
+use stride_lcmtypes::stride::{JointCommandT, JointStateT, NodeStatusT};
 use stride_node::{outln, AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Throttle, Tick};
 use stride_serial::{LineSpec, Paced, Transport};
 
@@ -47,6 +47,10 @@ pub struct Cli {
     /// How long each ping may wait beyond its wire time, ms.
     #[arg(long, default_value_t = 5)]
     pub scan_wait_ms: u64,
+    /// With port = "sim": publish the fake servos' true joint positions (rad, as the bridge
+    /// converts counts) on this sim-only channel each cycle, for the simulated world.
+    #[arg(long, value_name = "CHANNEL")]
+    pub true_state_channel: Option<String>,
 }
 
 stride_node::node_cli!(Cli);
@@ -72,8 +76,8 @@ fn parse_range(s: &str) -> Result<(u8, u8), String> {
     Ok((a, b))
 }
 
-/// The fake servos of a `sim` line, when it is one.
-pub type SimServos = Option<Sim<FakeChain>>;
+/// The fake servos of a `sim` line, when it is one, and their true positions.
+pub type SimServos = Option<(Sim<FakeChain>, ChainProbe)>;
 
 /// The line to the servos: the serial device, or fake servos on a pty in this process
 /// (returned with their guard).
@@ -90,14 +94,43 @@ pub fn open_line(
             .collect();
         let mut sim = Sim::new();
         let chain = FakeChain::new(protocol, servos, ChainLevers::default()).at_baud(cfg.baud);
+        let probe = chain.probe();
         sim.add(chain.spawn(Paced::new(dev), sim.flag()));
-        return Ok((Box::new(host), Some(sim)));
+        return Ok((Box::new(host), Some((sim, probe))));
     }
     let line = cfg
         .port
         .open_device(cfg.baud)
         .with_context(|| format!("opening the servo line {}", cfg.port))?;
     Ok((Box::new(line), None))
+}
+
+/// The fake servos' true joint positions (`positions`: id to counts, fractional), converted
+/// as the bridge converts what it reads; a servo not moved yet is left out.
+pub fn true_state(
+    cfg: &BridgeConfig,
+    positions: &std::collections::BTreeMap<u8, f64>,
+    header: stride_lcmtypes::stride::HeaderT,
+) -> JointStateT {
+    let mut m = JointStateT {
+        header,
+        ..Default::default()
+    };
+    for s in &cfg.servo {
+        let (Some(model), Some(c)) = (models::by_name(&s.model), positions.get(&s.id)) else {
+            continue;
+        };
+        let rad = s.direction as f64 * (c - model.center() as f64) * model.rad_per_count()
+            + s.zero_offset;
+        m.names.push(s.name.clone());
+        m.positions.push(rad);
+        m.velocities.push(f64::NAN);
+        m.currents.push(f64::NAN);
+        m.temperatures.push(f32::NAN);
+        m.faults.push(0);
+    }
+    m.num_joints = m.names.len() as i32;
+    m
 }
 
 /// `--scan`: lists what answers on the line.
@@ -131,6 +164,8 @@ pub struct DynamixelApp {
     // Dropped in this order: the bridge (its line) before the fake servos.
     bridge: Bridge<Box<dyn Transport>>,
     _sim: Option<Sim<FakeChain>>,
+    /// The fake servos' true positions and where they go (`--true-state-channel`).
+    truth: Option<(ChainProbe, String)>,
     _sub: lcm::Subscription,
     rx: std::sync::mpsc::Receiver<JointCommandT>,
     cfg: BridgeConfig,
@@ -142,10 +177,20 @@ pub struct DynamixelApp {
 
 impl DynamixelApp {
     /// Opens the line, brings the servos up and subscribes; refuses to start otherwise.
-    pub fn start(node: &Node, cfg: BridgeConfig) -> anyhow::Result<DynamixelApp> {
+    pub fn start(node: &Node, cfg: BridgeConfig, cli: &Cli) -> anyhow::Result<DynamixelApp> {
         let protocol = cfg.check().map_err(anyhow::Error::msg)?;
+        if cli.true_state_channel.is_some() && cfg.port != LineSpec::Sim {
+            anyhow::bail!("--true-state-channel needs port = \"sim\" (fake servos to measure)");
+        }
         node.set_health(NodeStatusT::STATE_STARTING, "checking the servos");
         let (line, sim) = open_line(&cfg, protocol)?;
+        let (sim, truth) = match sim {
+            Some((sim, probe)) => (
+                Some(sim),
+                cli.true_state_channel.clone().map(|c| (probe, c)),
+            ),
+            None => (None, None),
+        };
         let mut chain = Chain::new(line, cfg.chain()).map_err(anyhow::Error::msg)?;
         if let Err(e) = chain.bring_up() {
             node.set_health(NodeStatusT::STATE_FAULT, format!("refusing to start: {e}"));
@@ -157,6 +202,7 @@ impl DynamixelApp {
         Ok(DynamixelApp {
             bridge: Bridge::new(chain, cfg.reconnect_ms),
             _sim: sim,
+            truth,
             _sub: sub,
             rx,
             port: cfg.port.to_string(),
@@ -189,6 +235,12 @@ impl Tick for DynamixelApp {
             }
             let h = health(self.bridge.chain(), &self.port, header);
             let _ = node.lcm().publish(&self.cfg.health_channel, &h);
+        }
+        if let Some((probe, channel)) = &self.truth {
+            let m = true_state(&self.cfg, &probe.positions(), self.stamper.stamp());
+            if let Err(e) = node.lcm().publish(channel, &m) {
+                tracing::warn!(error = %e, "could not publish the true joint positions");
+            }
         }
         Ok(self.period.next(now))
     }

@@ -14,7 +14,7 @@ fn main() -> ExitCode {
             return Ok(ExitCode::SUCCESS);
         }
         let node = l.start()?;
-        let app = DynamixelApp::start(&node, l.cfg)?;
+        let app = DynamixelApp::start(&node, l.cfg, &l.cli)?;
         node.run(app)
     })
 }

@@ -27,7 +27,8 @@ use crate::{Bridge, BridgeConfig};
 /// that ends in motion is a chunk of a stream: when no chunk follows in time, its joints
 /// decelerate to a stop within their limits. A drive fault stops every axis; the next valid
 /// trajectory enables them again. When the bus fails the drives are brought up again once it
-/// answers. Joint states go out at state_rate_hz, the bridge's trajectory status
+/// answers. Joint states go out at state_rate_hz (idle_state_rate_hz while every joint holds
+/// still with nothing queued), the bridge's trajectory status
 /// (stride.trajectory_status_t) once a second and on every change. On shutdown the joints
 /// decelerate to a stop, then the drives are disabled.
 ///
@@ -105,6 +106,7 @@ pub struct ElmoApp<'n> {
     states: Stamper,
     statuses: Stamper,
     period: Duration,
+    idle_period: Duration,
     next_state: Instant,
     next_status: Instant,
 }
@@ -134,6 +136,7 @@ impl<'n> ElmoApp<'n> {
             _stop_sub: stop_sub,
             stops,
             period: Duration::from_secs_f64(1.0 / cfg.state_rate_hz),
+            idle_period: Duration::from_secs_f64(1.0 / cfg.idle_state_rate_hz),
             cfg,
             throttle: Throttle::new(Duration::from_secs(5)),
             states: Stamper::new(""),
@@ -160,8 +163,21 @@ impl Tick for ElmoApp<'_> {
         let h = self.bridge.health().clone();
         node.set_health(h.state, h.detail);
         let publisher = node.lcm();
-        if now >= self.next_state {
-            self.next_state = (self.next_state + self.period).max(now);
+        // Idle, the states go out less often; a trajectory brings the full rate back at once.
+        let still = self.bridge.still();
+        let due = if still {
+            self.next_state + (self.idle_period - self.period)
+        } else {
+            self.next_state
+        };
+        let mut next_state = due;
+        if now >= due {
+            self.next_state = if still {
+                now + self.period
+            } else {
+                (self.next_state + self.period).max(now)
+            };
+            next_state = self.next_state;
             let msg = self.bridge.states(self.states.stamp());
             if let Err(e) = publisher.publish(&self.cfg.state_channel, &msg) {
                 tracing::warn!(error = %e, "could not publish joint states");
@@ -177,7 +193,7 @@ impl Tick for ElmoApp<'_> {
         Ok(self
             .bridge
             .next_wake()
-            .min(self.next_state)
+            .min(next_state)
             .min(self.next_status))
     }
 

@@ -36,6 +36,9 @@ pub struct BridgeConfig {
     pub stop_channel: String,
     /// Joint state rate (and SYNC rate), Hz.
     pub state_rate_hz: f64,
+    /// Joint state rate while no motion is queued or playing and every joint is still, Hz
+    /// (the SYNC keeps state_rate_hz: the states stay fresh for the next trajectory's join).
+    pub idle_state_rate_hz: f64,
     /// How far ahead of the drives' play rows are sent, ms: a trajectory replaces what is
     /// queued no sooner than this after it arrives, and a stream's next chunk has to arrive
     /// this long before the queued motion ends, or the joints stop.
@@ -76,6 +79,7 @@ impl Default for BridgeConfig {
             trajectory_status_channel: "JOINT_TRAJECTORY_STATUS".into(),
             stop_channel: "STRIDE_STOP".into(),
             state_rate_hz: 100.0,
+            idle_state_rate_hz: 10.0,
             lookahead_ms: 100,
             max_queue_ms: 10_000,
             drive_watchdog_ms: 100,
@@ -107,6 +111,12 @@ impl BridgeConfig {
             return Err(format!(
                 "state_rate_hz {} outside 1..=1000",
                 self.state_rate_hz
+            ));
+        }
+        if !(self.idle_state_rate_hz > 0.0 && self.idle_state_rate_hz <= self.state_rate_hz) {
+            return Err(format!(
+                "idle_state_rate_hz {} outside (0, state_rate_hz]",
+                self.idle_state_rate_hz
             ));
         }
         if self.heartbeat_ms == 0 || self.drive_watchdog_ms < 2 * self.heartbeat_ms {
@@ -529,6 +539,17 @@ impl<B: CanBus> Bridge<B> {
             }
         }
         notes
+    }
+
+    /// True while no motion is queued or playing and every joint is still (below 0.01 rad/s):
+    /// the joint states may go out at the idle rate.
+    pub fn still(&self) -> bool {
+        self.master.idle()
+            && self
+                .master
+                .states()
+                .iter()
+                .all(|(_, s)| s.velocity.abs() < 0.01)
     }
 
     /// The joint states.

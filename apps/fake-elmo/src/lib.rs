@@ -15,7 +15,7 @@ use stride_canbus::{CanBus, MemBus, MemNode};
 use stride_elmo_bridge::BridgeConfig;
 use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
 use stride_lcmtypes::stride::{CanFrameBatchT, JointStateT};
-use stride_node::{Node, NodeArgs, Period, Stamper, Tick};
+use stride_node::{Node, NodeArgs, Stamper, Tick};
 
 /// Fake Elmo drives on a CAN bus carried over LCM.
 ///
@@ -34,9 +34,13 @@ pub struct Cli {
     /// Where the drives' true joint positions go (stride.joint_state_t).
     #[arg(long, value_name = "CHANNEL")]
     pub true_state_channel: String,
-    /// Rate of the true joint positions, Hz.
+    /// Rate of the true joint positions while a drive moves, Hz.
     #[arg(long, default_value_t = 100.0, value_name = "HZ")]
     pub rate: f64,
+    /// Rate of the true joint positions while every drive holds still, Hz (the drives then
+    /// step every 20 ms between the frames they answer, not every millisecond).
+    #[arg(long, default_value_t = 10.0, value_name = "HZ")]
+    pub idle_rate: f64,
 }
 
 stride_node::node_cli!(Cli);
@@ -50,7 +54,10 @@ pub struct Rig {
     tx: Receiver<CanFrameBatchT>,
     gateway: MemNode,
     drives: Vec<(FakeElmo, MemNode, String, f64)>,
-    period: Period,
+    /// The true positions' periods, moving and idle, and when they last went out.
+    period: Duration,
+    idle: Duration,
+    last_state: Option<Instant>,
     frames: Stamper,
     states: Stamper,
 }
@@ -60,6 +67,9 @@ impl Rig {
     pub fn start(node: &Node, cfg: &BridgeConfig, cli: &Cli) -> anyhow::Result<Rig> {
         if !(cli.rate.is_finite() && cli.rate > 0.0 && cli.rate <= 1000.0) {
             anyhow::bail!("--rate must be in (0, 1000] Hz");
+        }
+        if !(cli.idle_rate.is_finite() && cli.idle_rate > 0.0 && cli.idle_rate <= cli.rate) {
+            anyhow::bail!("--idle-rate must be in (0, --rate] Hz");
         }
         let bus = MemBus::new(cfg.bitrate);
         let drives = cfg
@@ -90,7 +100,9 @@ impl Rig {
             tx,
             gateway: bus.node(),
             drives,
-            period: Period::hz(cli.rate),
+            period: Duration::from_secs_f64(1.0 / cli.rate),
+            idle: Duration::from_secs_f64(1.0 / cli.idle_rate),
+            last_state: None,
             frames: Stamper::new(""),
             states: Stamper::new(""),
         })
@@ -138,11 +150,13 @@ impl Tick for Rig {
         for chunk in out.chunks(stride_can_lcm::BATCH) {
             p.publish(&self.rx, &batch(&self.bus_name, self.frames.stamp(), chunk))?;
         }
-        if self.period.due(now) {
-            self.period.next(now);
+        let moving = self.drives.iter().any(|(d, ..)| d.moving());
+        let every = if moving { self.period } else { self.idle };
+        if self.last_state.is_none_or(|at| now >= at + every) {
+            self.last_state = Some(now);
             let m = self.state();
             p.publish(&self.channel, &m)?;
         }
-        Ok(now + Duration::from_millis(1))
+        Ok(now + Duration::from_millis(if moving { 1 } else { 20 }))
     }
 }

@@ -515,7 +515,14 @@ impl Tick for PlannerApp {
         }
         self.dispatch()?;
         self.report(node);
-        Ok(now + Duration::from_millis(5))
+        // A search under way is looked for every millisecond (its plan goes out at once);
+        // idle, only messages (and the health's refresh each second) wake the planner.
+        Ok(now
+            + if self.scheduler.busy() {
+                Duration::from_millis(1)
+            } else {
+                Duration::from_secs(1)
+            })
     }
 
     fn stop(mut self, node: &Node) -> anyhow::Result<()> {

@@ -11,7 +11,7 @@ use stride_gait::archie::{ArchieGait, JointPlan};
 use stride_gait::hexapod::{HexConfig, HexGait, HexRow};
 use stride_gait::pattern::Pattern;
 use stride_gait::timeline::Footstep;
-use stride_gait::walker::{Verdict, Walker};
+use stride_gait::walker::{StepCounter, Verdict, Walker};
 use stride_gait::GaitError;
 use stride_kinematics::archie::{ArchieConfig, Leg};
 use stride_kinematics::hexapod::Hexapod;
@@ -256,7 +256,7 @@ enum Body {
         /// The joints of the walker's pattern.
         joints: Box<JointPlan>,
         plans: Receiver<FootstepPlanT>,
-        _plans_sub: lcm::Subscription,
+        plans_sub: lcm::Subscription,
     },
     Hexapod {
         gait: Box<HexGait>,
@@ -271,9 +271,9 @@ pub struct GaitApp {
     body: Body,
     groups: Vec<Group>,
     commands: Receiver<GaitCommandT>,
-    _commands_sub: lcm::Subscription,
+    commands_sub: lcm::Subscription,
     stops: Receiver<GaitCommandT>,
-    _stops_sub: lcm::Subscription,
+    stops_sub: lcm::Subscription,
     goals: Option<(lcm::Subscription, Receiver<PoseStampedT>)>,
     /// The goal being walked to.
     goal: Option<Pursuit>,
@@ -300,12 +300,23 @@ pub struct GaitApp {
     quiet: bool,
     period: Period,
     counter_period: Period,
+    /// The period of what does not change (see `GaitConfig::idle_rate_hz`).
+    idle: Duration,
+    /// The step counter last sent, and when.
+    last_counter: Option<(StepCounter, Instant)>,
+    /// Each group's set-point last sent, and when.
+    last_set: Vec<Option<(Vec<f64>, Instant)>>,
+    /// [`GaitApp::urgent_count`] when last asked.
+    urgent_seen: u64,
     status_period: Period,
     counter_stamper: Stamper,
     status_stamper: Stamper,
     status: TrajectoryStatusT,
     status_changed: bool,
 }
+
+/// The loop's period while the robot stands with nothing to do.
+const IDLE_TICK: Duration = Duration::from_millis(20);
 
 fn now_utime() -> i64 {
     std::time::SystemTime::now()
@@ -355,7 +366,7 @@ impl GaitApp {
                         walker: Box::new(walker),
                         joints: Box::new(joints),
                         plans: rx,
-                        _plans_sub: sub,
+                        plans_sub: sub,
                     },
                     groups,
                 )
@@ -432,6 +443,10 @@ impl GaitApp {
         Ok(GaitApp {
             period: Period::hz(cfg.rate_hz),
             counter_period: Period::hz(cfg.step_counter_rate_hz),
+            idle: Duration::from_secs_f64(1.0 / cfg.idle_rate_hz),
+            last_counter: None,
+            last_set: vec![None; groups.len()],
+            urgent_seen: 0,
             status_period: Period::hz(1.0),
             counter_stamper: Stamper::new(""),
             status_stamper: Stamper::new(""),
@@ -447,9 +462,9 @@ impl GaitApp {
             body,
             groups,
             commands: crx,
-            _commands_sub: csub,
+            commands_sub: csub,
             stops: srx,
-            _stops_sub: ssub,
+            stops_sub: ssub,
             goals,
             goal: None,
             goal_note: String::new(),
@@ -1107,6 +1122,14 @@ impl GaitApp {
                 continue;
             };
             let (p, v) = self.rows.at(self.group_index(g), t);
+            // Holding (the same set-point, at rest): only at the idle rate.
+            let now = Instant::now();
+            if let Some((last, at)) = &self.last_set[g] {
+                if *last == p && v.iter().all(|v| *v == 0.0) && now < *at + self.idle {
+                    continue;
+                }
+            }
+            self.last_set[g] = Some((p.clone(), now));
             let header = self.groups[g].stamper.stamp();
             let m = command_msg(header, &self.groups[g].joints, &p, &v);
             node.publisher().publish(&ch, &m)?;
@@ -1115,8 +1138,28 @@ impl GaitApp {
     }
 }
 
+impl GaitApp {
+    /// Messages taken so far on the subscriptions that tick the gait at once: plans, commands,
+    /// stops and goals.
+    fn urgent_count(&self) -> u64 {
+        let plans = match &self.body {
+            Body::Archie { plans_sub, .. } => plans_sub.stats().received,
+            Body::Hexapod { .. } => 0,
+        };
+        plans
+            + self.commands_sub.stats().received
+            + self.stops_sub.stats().received
+            + self.goals.as_ref().map_or(0, |(s, _)| s.stats().received)
+    }
+}
+
 impl Tick for GaitApp {
     const WAKE_ON_MESSAGE: bool = false;
+
+    fn urgent(&mut self) -> bool {
+        let n = self.urgent_count();
+        std::mem::replace(&mut self.urgent_seen, n) != n
+    }
 
     fn tick(&mut self, node: &Node, now: Instant) -> anyhow::Result<Instant> {
         let t = self.time(now);
@@ -1163,9 +1206,17 @@ impl Tick for GaitApp {
         if self.counter_period.due(now) {
             self.counter_period.next(now);
             if let Body::Archie { walker, .. } = &self.body {
-                let m = counter_msg(self.counter_stamper.stamp(), &walker.counter(t));
-                node.publisher()
-                    .publish(&self.cfg.step_counter_channel, &m)?;
+                let c = walker.counter(t);
+                // Unchanged (standing): only at the idle rate.
+                let same = self
+                    .last_counter
+                    .is_some_and(|(last, at)| last == c && now < at + self.idle);
+                if !same {
+                    self.last_counter = Some((c, now));
+                    let m = counter_msg(self.counter_stamper.stamp(), &c);
+                    node.publisher()
+                        .publish(&self.cfg.step_counter_channel, &m)?;
+                }
             }
         }
         if self.status_changed || self.status_period.due(now) {
@@ -1175,7 +1226,21 @@ impl Tick for GaitApp {
             node.publisher()
                 .publish(&self.cfg.status_channel, &self.status)?;
         }
-        Ok(self.period.next(now))
+        // Standing with nothing to do (no goal, every row played), the loop slows to 50 Hz:
+        // a command waits at most 20 ms.
+        let idle = self.phase == Phase::Ready
+            && self.goal.is_none()
+            && t >= self.rows.end()
+            && match &self.body {
+                Body::Archie { walker, .. } => walker.standing(t),
+                Body::Hexapod { .. } => true,
+            };
+        let next = self.period.next(now);
+        Ok(if idle {
+            next.max(now + IDLE_TICK)
+        } else {
+            next
+        })
     }
 
     fn stop(mut self, node: &Node) -> anyhow::Result<()> {

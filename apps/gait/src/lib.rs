@@ -205,6 +205,11 @@ pub struct GaitConfig {
     /// The step counter's rate, Hz.
     #[serde(default = "counter_rate")]
     pub step_counter_rate_hz: f64,
+    /// While the step counter and the set-points do not change (the robot stands), they go
+    /// out at this rate, Hz, rather than at theirs (faster than a set-point bridge's hold
+    /// timeout: the Dynamixel bridge's is 0.5 s).
+    #[serde(default = "idle_rate")]
+    pub idle_rate_hz: f64,
     /// Trajectory chunks go out this far ahead of their play, s (more than the bridge's
     /// lookahead).
     #[serde(default = "lookahead")]
@@ -272,6 +277,9 @@ fn rate() -> f64 {
 fn counter_rate() -> f64 {
     50.0
 }
+fn idle_rate() -> f64 {
+    5.0
+}
 fn lookahead() -> f64 {
     0.3
 }
@@ -301,6 +309,7 @@ impl GaitConfig {
         let pos = [
             ("rate_hz", self.rate_hz),
             ("step_counter_rate_hz", self.step_counter_rate_hz),
+            ("idle_rate_hz", self.idle_rate_hz),
             ("lookahead", self.lookahead),
             ("chunk", self.chunk),
             ("start_tolerance", self.start_tolerance),

@@ -356,6 +356,12 @@ fn step(
     for s in [&s1, &s2, &s3, &s4] {
         s.set_queue_capacity(10_000)?;
     }
+    // The simulated world, when one runs: the body's true pose and its report.
+    let (_s5, poses) = node.queue::<PoseStampedT>("SIM_POSE")?;
+    let (_s6, reports) = node.queue::<stride_lcmtypes::stride::SimReportT>("SIM_REPORT")?;
+    let mut pose0: Option<PoseStampedT> = None;
+    let mut pose: Option<PoseStampedT> = None;
+    let mut report = None;
     // The gait takes a walk once it stands ready: its heartbeat says RUNNING.
     let mut ready = false;
     let started = Instant::now();
@@ -417,14 +423,47 @@ fn step(
         for m in measured.try_iter() {
             tracking.measured(&m);
         }
+        for m in poses.try_iter() {
+            if moving_since.is_none() {
+                pose0 = Some(m.clone());
+            }
+            pose = Some(m);
+        }
+        if let Some(r) = reports.try_iter().last() {
+            report = Some(r);
+        }
     }
     let secs = moving_since.map_or(0.0, |t| t.elapsed().as_secs_f64());
+    let sim = pose0.zip(pose).map(|(a, b)| {
+        let r = report.unwrap_or_default();
+        let (p0, p1) = (a.pose.position, b.pose.position);
+        let q = a.pose.orientation;
+        let yaw =
+            (2.0 * (q[0] * q[3] + q[1] * q[2])).atan2(1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3]));
+        let (dx, dy) = (p1[0] - p0[0], p1[1] - p0[1]);
+        let ahead = dx * yaw.cos() + dy * yaw.sin();
+        let off = ahead - distance;
+        let ok =
+            off.abs() <= (0.25 * distance.abs()).max(0.05) && r.falls == 0 && r.collisions == 0;
+        let text = format!(
+            "the simulated body moved {ahead:.3} m ahead ({:.3} m asked; ({dx:+.3}, {dy:+.3}) m in \
+             the world), smallest static margin {:.3} m, falls {}, collisions {}, joints at a \
+             limit {}",
+            distance, r.min_zmp_margin, r.falls, r.collisions, r.limits
+        );
+        (ok, text)
+    });
     let (ok, what) = match verdict {
         Some(Ok(_)) => (
-            true,
+            sim.as_ref().is_none_or(|(ok, _)| *ok),
             format!(
-                "the walk of {distance} m ({gait} gait) played to its end in {secs:.1} s (the \
-                 servos' tracking below; no simulated body measures the distance)"
+                "the walk of {distance} m ({gait} gait) played to its end in {secs:.1} s{}",
+                match &sim {
+                    Some((_, text)) => format!("; {text}"),
+                    None => " (the servos' tracking below; no simulated body measures the \
+                              distance)"
+                        .to_string(),
+                }
             ),
         ),
         Some(Err(why)) => (false, why),

@@ -255,12 +255,20 @@ fn stdout_is_pipe() -> bool {
 
 /// An app's state machine, driven by [`Node::run`].
 pub trait Tick {
-    /// Tick as soon as a message arrives, not only when the time asked for has come.
+    /// Tick as soon as a message of a subscription arrives, not only when the time asked
+    /// for has come (other traffic on the bus does not wake the app).
     const WAKE_ON_MESSAGE: bool = true;
 
     /// Does one turn of work at `now` (take queued messages, talk to devices, publish) and
     /// says when it wants the next. An error stops the loop: [`Tick::stop`] still runs.
     fn tick(&mut self, node: &Node, now: Instant) -> anyhow::Result<Instant>;
+
+    /// Asked after messages of the app's subscriptions arrived between ticks (when
+    /// [`Tick::WAKE_ON_MESSAGE`] is false): true ticks at once, for messages that should not
+    /// wait for the next period (a plan, a command) while the rest of the traffic does.
+    fn urgent(&mut self) -> bool {
+        false
+    }
 
     /// Stops gracefully (devices to a safe state), once, after the loop ends.
     fn stop(self, _node: &Node) -> anyhow::Result<()>
@@ -319,10 +327,14 @@ impl Node {
         let mut result = Ok(());
         while self.running() {
             let wait = wake.saturating_duration_since(Instant::now());
+            let before = self.lcm().stats().received;
             let got = match self.lcm().handle_timeout(wait) {
                 Ok(true) => self.lcm().handle_pending().map(|_| true),
                 other => other,
             };
+            // Only a message for one of the app's subscriptions counts: the rest of the
+            // bus's traffic (every process on a multicast group receives all of it) does not.
+            let got = got.map(|g| g && self.lcm().stats().received != before);
             let got = match got {
                 Ok(g) => g,
                 Err(e) => {
@@ -338,7 +350,7 @@ impl Node {
                     break;
                 }
             }
-            if now >= wake || (got && T::WAKE_ON_MESSAGE) {
+            if now >= wake || (got && (T::WAKE_ON_MESSAGE || app.urgent())) {
                 match app.tick(self, now) {
                     Ok(w) => wake = w,
                     Err(e) => {

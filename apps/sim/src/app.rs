@@ -2,29 +2,31 @@
 
 use std::path::PathBuf;
 use std::sync::mpsc::Receiver;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use stride_kinematics::archie::ArchieConfig;
 use stride_lcmtypes::stride::{JointStateT, NodeStatusT};
 use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
 use stride_world::scene::Scene;
 
-use crate::{Sim, SimConfig};
+use crate::{Robot, Sim, SimConfig};
 
 /// The simulated world.
 ///
-/// Loads a scene and Archie's robot file, reads the true joint positions the fake devices
-/// publish on sim-only channels, and moves the body kinematically: the stance foot stays
-/// where it stands, a foot the joints push into the ground takes over, set down on the
-/// scene's surface. Publishes the pelvis's true pose (SIM_POSE), a noisy odometry and IMU,
-/// perfect perception of the scene with noise and delay (the obstacles and an elevation map
-/// around the robot, on the mapper's channels) and a report (SIM_REPORT): the feet, the
-/// smallest ZMP margin and clearance, collisions of a foot or shank with an obstacle, falls
-/// (the cart-table ZMP of the whole robot outside the support polygon) and joints at their
+/// Loads a scene and the robot's file (Archie, or the hexapod with robot = "hexapod"), reads
+/// the true joint positions the fake devices publish on sim-only channels (the fake Elmo
+/// drives, the Dynamixel bridge's fake servos), and moves the body kinematically. Archie: the
+/// stance foot stays where it stands, a foot the joints push into the ground takes over, set
+/// down on the scene's surface. The hexapod: the feet on the ground stay where they stand,
+/// the body level on its lowest feet, a foot that comes down touches down. Publishes the
+/// body's true pose (SIM_POSE), a noisy odometry and IMU, perfect perception of the scene with
+/// noise and delay (the obstacles and an elevation map around the robot, on the mapper's
+/// channels) and a report (SIM_REPORT): the feet, the smallest ZMP margin (the hexapod's:
+/// static) and clearance, collisions with an obstacle, falls (the cart-table ZMP of the whole
+/// robot, or the hexapod's body centre, outside the support polygon) and joints at their
 /// limits. The same seed gives the same noise.
 ///
-/// See config/sim-archie.toml.
+/// See config/sim-archie.toml and config/sim-hexapod.toml.
 #[derive(clap::Parser, Debug)]
 #[command(name = "stride-sim", version, about, long_about)]
 pub struct Cli {
@@ -86,7 +88,7 @@ impl SimApp {
         let scene =
             Scene::load(&scene_path).with_context(|| format!("scene {}", scene_path.display()))?;
         let robot_path = cfg.relative(file, &cfg.robot_file);
-        let robot = ArchieConfig::load(&robot_path)
+        let robot = Robot::load(cfg.robot, &robot_path)
             .with_context(|| format!("robot file {}", robot_path.display()))?;
         if let Some(seed) = cli.seed {
             cfg.seed = seed;
@@ -142,6 +144,7 @@ impl Tick for SimApp {
             .flat_map(|(k, rx)| rx.try_iter().map(move |m| (k, m)))
             .collect();
         msgs.sort_by_key(|(_, m)| m.header.utime);
+        let mut moved = false;
         for (k, m) in msgs {
             self.sim.take_joints(&m);
             self.fresh[k] = true;
@@ -150,6 +153,7 @@ impl Tick for SimApp {
                 let at = (m.header.utime - self.utime0) as f64 * 1e-6;
                 if at > self.last_step {
                     self.last_step = at;
+                    moved = true;
                     for e in self.sim.step(at) {
                         tracing::info!("{e}");
                     }
@@ -157,7 +161,7 @@ impl Tick for SimApp {
             }
         }
         let p = node.publisher();
-        if self.sim.body().is_none() {
+        if !self.sim.ready() {
             if t > 5.0 {
                 node.set_health(
                     NodeStatusT::STATE_STARTING,
@@ -171,8 +175,12 @@ impl Tick for SimApp {
             node.set_running();
         }
         let cfg = &self.cfg;
-        if let Some(m) = self.sim.pose_msg(self.stamps[0].stamp()) {
-            p.publish(&cfg.pose_channel, &m)?;
+        // The true pose goes out with each move of the body (as often as the drives' true
+        // positions come: every 10 ms walking, less often standing).
+        if moved {
+            if let Some(m) = self.sim.pose_msg(self.stamps[0].stamp()) {
+                p.publish(&cfg.pose_channel, &m)?;
+            }
         }
         if !cfg.odometry.channel.is_empty() && self.odometry.due(now) {
             self.odometry.next(now);
@@ -204,6 +212,12 @@ impl Tick for SimApp {
             let m = self.sim.report_msg(self.stamps[5].stamp(), &self.scene);
             p.publish(&cfg.report_channel, &m)?;
         }
-        Ok(self.period.next(now))
+        // A body at rest (no new joint sample) is looked at every 20 ms, the sensors' pace.
+        let next = self.period.next(now);
+        Ok(if moved {
+            next
+        } else {
+            next.max(now + Duration::from_millis(20))
+        })
     }
 }

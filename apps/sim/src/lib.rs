@@ -9,23 +9,40 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 use stride_kinematics::archie::{ArchieConfig, Leg, Q};
+use stride_kinematics::hexapod::Hexapod;
+use stride_kinematics::math::Pose;
 use stride_lcmtypes::stride::{
     ElevationMapT, FootT, HeaderT, ImuT, JointStateT, ObstacleListT, ObstacleT, OdometryT,
     PoseStampedT, PoseT, SimReportT,
 };
 use stride_sim::body::{quaternion, yaw_of, Body, BodyConfig, Event};
+use stride_sim::hexapod::{HexBody, HexBodyConfig};
 use stride_sim::noise::Rng;
 use stride_sim::world::{PerceptionNoise, World};
 use stride_world::grid::Grid;
 use stride_world::scene::{Obstacle, Scene};
 
-/// The simulator's file (config/sim-archie.toml).
+/// The robot a simulator moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SimRobot {
+    /// Archie, the biped: one stance foot fixed, the ZMP watched.
+    #[default]
+    Archie,
+    /// The hexapod: the feet on the ground fixed, the body level, its static margin watched.
+    Hexapod,
+}
+
+/// The simulator's file (config/sim-archie.toml, config/sim-hexapod.toml).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SimConfig {
+    /// The robot (archie unless said).
+    #[serde(default)]
+    pub robot: SimRobot,
     /// The scene, relative to this file (`--scene` overrides it).
     pub scene: Option<PathBuf>,
-    /// Archie's robot file, relative to this file.
+    /// The robot's file (config/robots/archie.toml or hexapod.toml), relative to this file.
     pub robot_file: PathBuf,
     /// The seed of every noise: the same seed, the same run.
     #[serde(default)]
@@ -51,9 +68,12 @@ pub struct SimConfig {
     /// Perfect perception of the scene.
     #[serde(default)]
     pub perception: PerceptionConfig,
-    /// How the body meets the ground and what counts as wrong.
+    /// How Archie's body meets the ground and what counts as wrong.
     #[serde(default)]
     pub body: BodyConfig,
+    /// The same for the hexapod's.
+    #[serde(default)]
+    pub hexapod_body: HexBodyConfig,
     /// Obstacles that appear during the run.
     #[serde(default)]
     pub appear: Vec<Appear>,
@@ -199,7 +219,8 @@ impl SimConfig {
                 return Err("start must be finite".into());
             }
         }
-        self.body.check()
+        self.body.check()?;
+        self.hexapod_body.check()
     }
 
     /// `p` relative to the configuration file's directory.
@@ -320,18 +341,43 @@ fn pose_t(p: &stride_kinematics::math::Pose) -> PoseT {
     }
 }
 
+/// A robot's model in the simulator: its bodies, the names of its joints (in the order its
+/// body takes them) and their last true positions.
+enum Model {
+    Archie {
+        robot: ArchieConfig,
+        body: Option<Box<Body>>,
+    },
+    Hexapod {
+        robot: Box<Hexapod>,
+        body: Option<Box<HexBody>>,
+        /// The body's pose and time at the previous step, for its velocities.
+        last: Option<(f64, [f64; 3], f64)>,
+        /// The body's linear and angular velocity (world frame), from the last two steps.
+        velocity: ([f64; 3], [f64; 3]),
+    },
+}
+
+/// The robot as the sensors see it: the pose of its body (the pelvis, the hexapod's body),
+/// its velocities and acceleration in the world frame.
+struct Kin {
+    pose: Pose,
+    velocity: [f64; 3],
+    angular_velocity: [f64; 3],
+    acceleration: [f64; 3],
+}
+
 /// One simulated run: the world, the body once every joint is known, the noise, the
 /// perception on its way.
 pub struct Sim {
     /// The configuration.
     pub cfg: SimConfig,
     world: World,
-    robot: ArchieConfig,
-    body: Option<Body>,
+    model: Model,
     rng: Rng,
     start: [f64; 3],
-    names: [[String; 6]; 2],
-    q: [[Option<f64>; 6]; 2],
+    names: Vec<String>,
+    q: Vec<Option<f64>>,
     /// Perception waiting for its delay: when it goes out, and what.
     pending: VecDeque<(f64, ObstacleListT, Option<ElevationMapT>)>,
     /// Words of what began since the last report.
@@ -341,22 +387,92 @@ pub struct Sim {
     appeared: usize,
 }
 
+/// An event of Archie's body, in words.
+fn archie_words(e: &Event) -> String {
+    match e {
+        Event::Touchdown { leg, at } => format!(
+            "{} foot down at ({:.3}, {:.3}, {:.3})",
+            leg.name(),
+            at[0],
+            at[1],
+            at[2]
+        ),
+        Event::Collision { part, obstacle, at } => format!(
+            "collision: {part} inside obstacle {obstacle} at ({:.3}, {:.3}, {:.3})",
+            at[0], at[1], at[2]
+        ),
+        Event::Fall { zmp, margin } => format!(
+            "fall: the ZMP ({:.3}, {:.3}) is {:.3} m outside the support polygon",
+            zmp[0], zmp[1], -margin
+        ),
+        Event::Limit { joint, value } => format!("{joint} at its limit ({value:.3} rad)"),
+    }
+}
+
+/// A robot the simulator can move.
+pub enum Robot {
+    /// Archie's robot file.
+    Archie(ArchieConfig),
+    /// The hexapod's.
+    Hexapod(Hexapod),
+}
+
+impl Robot {
+    /// Loads the robot file of `kind`.
+    pub fn load(kind: SimRobot, path: &Path) -> anyhow::Result<Robot> {
+        Ok(match kind {
+            SimRobot::Archie => Robot::Archie(ArchieConfig::load(path)?),
+            SimRobot::Hexapod => Robot::Hexapod(Hexapod::load(path)?),
+        })
+    }
+}
+
+fn yaw_pose(p: [f64; 3], yaw: f64) -> Pose {
+    let (c, s) = (yaw.cos(), yaw.sin());
+    Pose {
+        r: [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]],
+        p,
+    }
+}
+
 impl Sim {
     /// A run of `scene` with `robot`.
-    pub fn new(cfg: SimConfig, scene: Scene, robot: ArchieConfig) -> anyhow::Result<Sim> {
+    pub fn new(cfg: SimConfig, scene: Scene, robot: Robot) -> anyhow::Result<Sim> {
         let start = cfg
             .start
             .unwrap_or([scene.start.x, scene.start.y, scene.start.yaw]);
         let world = World::new(scene).map_err(|e| anyhow::anyhow!("the scene's map: {e}"))?;
+        let (names, model): (Vec<String>, Model) = match robot {
+            Robot::Archie(robot) => (
+                [Leg::Left, Leg::Right]
+                    .iter()
+                    .flat_map(|l| robot.names(*l))
+                    .collect(),
+                Model::Archie { robot, body: None },
+            ),
+            Robot::Hexapod(robot) => (
+                (1..=6u8)
+                    .flat_map(|n| {
+                        let leg = robot.leg(n).map_or(String::new(), |l| l.name.clone());
+                        ["coxa", "femur", "tibia"].map(move |j| format!("{leg}_{j}"))
+                    })
+                    .collect(),
+                Model::Hexapod {
+                    robot: Box::new(robot),
+                    body: None,
+                    last: None,
+                    velocity: ([0.0; 3], [0.0; 3]),
+                },
+            ),
+        };
         Ok(Sim {
             rng: Rng::new(cfg.seed),
-            names: [robot.names(Leg::Left), robot.names(Leg::Right)],
+            q: vec![None; names.len()],
+            names,
             cfg,
             world,
-            robot,
-            body: None,
+            model,
             start,
-            q: [[None; 6]; 2],
             pending: VecDeque::new(),
             events: Vec::new(),
             min_margin: f64::NAN,
@@ -365,44 +481,76 @@ impl Sim {
         })
     }
 
-    /// The body, once every joint was measured.
-    pub fn body(&self) -> Option<&Body> {
-        self.body.as_ref()
+    /// True once every joint was measured and the body stands in the world.
+    pub fn ready(&self) -> bool {
+        match &self.model {
+            Model::Archie { body, .. } => body.is_some(),
+            Model::Hexapod { body, .. } => body.is_some(),
+        }
     }
 
-    /// Takes true joint positions (names not of Archie's legs, and positions that are not
-    /// finite, are ignored).
+    /// Takes true joint positions (names not of the robot's joints, and positions that are
+    /// not finite, are ignored).
     pub fn take_joints(&mut self, m: &JointStateT) {
         for (name, p) in m.names.iter().zip(&m.positions) {
             if !p.is_finite() {
                 continue;
             }
-            for leg in 0..2 {
-                if let Some(k) = self.names[leg].iter().position(|n| n == name) {
-                    self.q[leg][k] = Some(*p);
-                }
+            if let Some(k) = self.names.iter().position(|n| n == name) {
+                self.q[k] = Some(*p);
             }
         }
     }
 
     /// The joints not measured yet.
     pub fn missing(&self) -> Vec<&str> {
-        (0..2)
-            .flat_map(|l| (0..6).map(move |k| (l, k)))
-            .filter(|&(l, k)| self.q[l][k].is_none())
-            .map(|(l, k)| self.names[l][k].as_str())
+        self.names
+            .iter()
+            .zip(&self.q)
+            .filter(|(_, q)| q.is_none())
+            .map(|(n, _)| n.as_str())
             .collect()
     }
 
-    fn joints(&self) -> Option<[Q; 2]> {
-        let leg = |l: usize| -> Option<Q> {
-            let mut q = [0.0; 6];
-            for (k, v) in q.iter_mut().enumerate() {
-                *v = self.q[l][k]?;
+    /// Every joint's last true position, in the body's order, once all are known.
+    fn joints(&self) -> Option<Vec<f64>> {
+        self.q.iter().copied().collect()
+    }
+
+    /// The body's pose, velocities and acceleration.
+    fn kin(&self) -> Option<Kin> {
+        match &self.model {
+            Model::Archie { body, .. } => {
+                let s = &body.as_ref()?.state;
+                let (velocity, angular_velocity, acceleration) = match &s.fitted {
+                    Some(f) => (f.velocity, f.angular_velocity, f.acceleration),
+                    None => ([0.0; 3], [0.0; 3], [0.0; 3]),
+                };
+                Some(Kin {
+                    pose: s.pelvis,
+                    velocity,
+                    angular_velocity,
+                    acceleration,
+                })
             }
-            Some(q)
-        };
-        Some([leg(0)?, leg(1)?])
+            Model::Hexapod { body, velocity, .. } => {
+                let (p, yaw) = body.as_ref()?.pose();
+                Some(Kin {
+                    pose: yaw_pose(p, yaw),
+                    velocity: velocity.0,
+                    angular_velocity: velocity.1,
+                    acceleration: [0.0; 3],
+                })
+            }
+        }
+    }
+
+    /// The name of the body's frame.
+    fn frame(&self) -> &'static str {
+        match self.model {
+            Model::Archie { .. } => "pelvis",
+            Model::Hexapod { .. } => "body",
+        }
     }
 
     /// Moves the body to the joints last measured, at `t` (s); returns what began, in words
@@ -411,55 +559,92 @@ impl Sim {
         let Some(q) = self.joints() else {
             return Vec::new();
         };
-        let body = match &mut self.body {
-            Some(b) => b,
-            None => {
-                let b = Body::new(
-                    self.robot.clone(),
-                    self.cfg.body,
-                    self.start,
-                    q,
-                    &self.world,
-                );
-                self.body.insert(b)
+        let (mut words, touchdowns) = match &mut self.model {
+            Model::Archie { robot, body } => {
+                let q: [Q; 2] = [
+                    std::array::from_fn(|k| q[k]),
+                    std::array::from_fn(|k| q[6 + k]),
+                ];
+                let body = match body {
+                    Some(b) => b,
+                    None => body.insert(Box::new(Body::new(
+                        robot.clone(),
+                        self.cfg.body,
+                        self.start,
+                        q,
+                        &self.world,
+                    ))),
+                };
+                let words: Vec<String> = body
+                    .step(t, &q, &self.world)
+                    .iter()
+                    .map(archie_words)
+                    .collect();
+                let s = &body.state;
+                if let Some(f) = &s.fitted {
+                    self.min_margin = if self.min_margin.is_nan() {
+                        f.margin
+                    } else {
+                        self.min_margin.min(f.margin)
+                    };
+                }
+                self.min_clearance = self.min_clearance.min(s.clearance);
+                (words, body.counts().touchdowns)
+            }
+            Model::Hexapod {
+                robot,
+                body,
+                last,
+                velocity,
+            } => {
+                let q: [[f64; 3]; 6] =
+                    std::array::from_fn(|l| std::array::from_fn(|j| q[3 * l + j]));
+                let body = match body {
+                    Some(b) => b,
+                    None => {
+                        let b = HexBody::new(
+                            (**robot).clone(),
+                            self.cfg.hexapod_body,
+                            self.start,
+                            &q,
+                            &self.world,
+                        )
+                        .map_err(|e| anyhow::anyhow!("{e}"));
+                        match b {
+                            Ok(b) => body.insert(Box::new(b)),
+                            Err(e) => return vec![format!("the hexapod cannot stand: {e}")],
+                        }
+                    }
+                };
+                let words: Vec<String> = body
+                    .step(t, &q, &self.world)
+                    .iter()
+                    .map(|e| e.to_string())
+                    .collect();
+                let (p, yaw) = body.pose();
+                if let Some((t0, p0, yaw0)) = *last {
+                    let dt = t - t0;
+                    if dt > 1e-6 {
+                        let mut dyaw = yaw - yaw0;
+                        dyaw = (dyaw + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                            - std::f64::consts::PI;
+                        *velocity = (
+                            [0, 1, 2].map(|k| (p[k] - p0[k]) / dt),
+                            [0.0, 0.0, dyaw / dt],
+                        );
+                    }
+                }
+                *last = Some((t, p, yaw));
+                self.min_margin = body.min_margin();
+                self.min_clearance = body.min_clearance();
+                (words, body.counts().touchdowns)
             }
         };
-        let mut words: Vec<String> = body
-            .step(t, &q, &self.world)
-            .iter()
-            .map(|e| match e {
-                Event::Touchdown { leg, at } => format!(
-                    "{} foot down at ({:.3}, {:.3}, {:.3})",
-                    leg.name(),
-                    at[0],
-                    at[1],
-                    at[2]
-                ),
-                Event::Collision { part, obstacle, at } => format!(
-                    "collision: {part} inside obstacle {obstacle} at ({:.3}, {:.3}, {:.3})",
-                    at[0], at[1], at[2]
-                ),
-                Event::Fall { zmp, margin } => format!(
-                    "fall: the ZMP ({:.3}, {:.3}) is {:.3} m outside the support polygon",
-                    zmp[0], zmp[1], -margin
-                ),
-                Event::Limit { joint, value } => {
-                    format!("{joint} at its limit ({value:.3} rad)")
-                }
-            })
-            .collect();
-        let s = &body.state;
-        if let Some(f) = &s.fitted {
-            self.min_margin = if self.min_margin.is_nan() {
-                f.margin
-            } else {
-                self.min_margin.min(f.margin)
-            };
-        }
-        self.min_clearance = self.min_clearance.min(s.clearance);
         // An obstacle due to appear.
-        let touchdowns = body.counts().touchdowns;
-        let (pelvis, yaw) = (s.pelvis.p, yaw_of(&s.pelvis));
+        let Some(kin) = self.kin() else {
+            return words;
+        };
+        let (pelvis, yaw) = (kin.pose.p, yaw_of(&kin.pose));
         while let Some(a) = self.cfg.appear.get(self.appeared).copied() {
             if touchdowns < a.after_touchdowns {
                 break;
@@ -490,63 +675,54 @@ impl Sim {
         words
     }
 
-    /// The pelvis's true pose.
+    /// The body's true pose (Archie's pelvis, the hexapod's body).
     pub fn pose_msg(&self, header: HeaderT) -> Option<PoseStampedT> {
-        let b = self.body.as_ref()?;
+        let k = self.kin()?;
         Some(PoseStampedT {
             header,
-            child_frame: "pelvis".into(),
-            pose: pose_t(&b.state.pelvis),
+            child_frame: self.frame().into(),
+            pose: pose_t(&k.pose),
         })
     }
 
-    /// The odometry: the true pose with noise, the fitted velocity in the body frame.
+    /// The odometry: the true pose with noise, the velocities in the body frame.
     pub fn odometry_msg(&mut self, header: HeaderT) -> Option<OdometryT> {
-        let b = self.body.as_ref()?;
-        let s = &b.state;
+        let k = self.kin()?;
         let c = &self.cfg.odometry;
-        let mut p = pose_t(&s.pelvis);
+        let mut p = pose_t(&k.pose);
         for v in &mut p.position {
             *v += self.rng.normal(c.position_sigma);
         }
-        let yaw = yaw_of(&s.pelvis) + self.rng.normal(c.yaw_sigma);
+        let yaw = yaw_of(&k.pose) + self.rng.normal(c.yaw_sigma);
         p.orientation = [(yaw / 2.0).cos(), 0.0, 0.0, (yaw / 2.0).sin()];
         let mut cov = [0.0; 36];
-        for k in 0..3 {
-            cov[k * 7] = c.position_sigma.powi(2);
+        for i in 0..3 {
+            cov[i * 7] = c.position_sigma.powi(2);
         }
         cov[35] = c.yaw_sigma.powi(2);
-        let body_frame = |v| in_frame(&s.pelvis.r, v);
-        let (lin, ang) = match &s.fitted {
-            Some(f) => (body_frame(f.velocity), body_frame(f.angular_velocity)),
-            None => ([0.0; 3], [0.0; 3]),
-        };
+        let body_frame = |v| in_frame(&k.pose.r, v);
         Some(OdometryT {
             header,
-            child_frame: "pelvis".into(),
+            child_frame: self.frame().into(),
             pose: p,
             pose_covariance: cov,
-            linear_velocity: lin,
-            angular_velocity: ang,
+            linear_velocity: body_frame(k.velocity),
+            angular_velocity: body_frame(k.angular_velocity),
             twist_covariance: [0.0; 36],
             step_number: -1,
         })
     }
 
-    /// The IMU: the pelvis's orientation, angular velocity and specific force in its frame,
+    /// The IMU: the body's orientation, angular velocity and specific force in its frame,
     /// with noise.
     pub fn imu_msg(&mut self, header: HeaderT) -> Option<ImuT> {
-        let b = self.body.as_ref()?;
-        let s = &b.state;
+        let k = self.kin()?;
         let c = &self.cfg.imu;
-        let r = &s.pelvis.r;
+        let r = &k.pose.r;
         let body_frame = |v| in_frame(r, v);
-        let (w, a) = match &s.fitted {
-            Some(f) => (f.angular_velocity, f.acceleration),
-            None => ([0.0; 3], [0.0; 3]),
-        };
+        let a = k.acceleration;
         let g = self.cfg.body.g;
-        let mut w = body_frame(w);
+        let mut w = body_frame(k.angular_velocity);
         let mut f = body_frame([a[0], a[1], a[2] + g]);
         for v in &mut w {
             *v += self.rng.normal(c.gyro_sigma);
@@ -575,9 +751,8 @@ impl Sim {
             .collect();
         let grid = self.world.perceived_elevation(&n, &mut self.rng);
         let at = self
-            .body
-            .as_ref()
-            .map_or([self.start[0], self.start[1], 0.0], |b| b.state.pelvis.p);
+            .kin()
+            .map_or([self.start[0], self.start[1], 0.0], |k| k.pose.p);
         let map = elevation_msg(map, &grid, at[0], at[1], self.cfg.perception.map_size);
         self.pending.push_back((
             t + self.cfg.perception.delay,
@@ -614,21 +789,36 @@ impl Sim {
             events,
             ..Default::default()
         };
-        if let Some(b) = &self.body {
-            let s = &b.state;
-            let c = b.counts();
-            m.feet = s.feet;
-            m.contact = s.contact;
-            m.anchor = match s.anchor {
-                Leg::Left => FootT::SIDE_LEFT,
-                Leg::Right => FootT::SIDE_RIGHT,
-            };
-            m.com = s.com;
-            m.zmp_margin = s.fitted.map_or(f64::NAN, |f| f.margin);
-            m.touchdowns = c.touchdowns as i64;
-            m.collisions = c.collisions as i64;
-            m.falls = c.falls as i64;
-            m.limits = c.limits as i64;
+        match &self.model {
+            Model::Archie { body: Some(b), .. } => {
+                let s = &b.state;
+                let c = b.counts();
+                m.feet = s.feet;
+                m.contact = s.contact;
+                m.anchor = match s.anchor {
+                    Leg::Left => FootT::SIDE_LEFT,
+                    Leg::Right => FootT::SIDE_RIGHT,
+                };
+                m.com = s.com;
+                m.zmp_margin = s.fitted.map_or(f64::NAN, |f| f.margin);
+                m.touchdowns = c.touchdowns as i64;
+                m.collisions = c.collisions as i64;
+                m.falls = c.falls as i64;
+                m.limits = c.limits as i64;
+            }
+            // Six feet do not fit the report's two: the body's centre stands for the centre
+            // of mass, its static margin in the feet's support polygon for the ZMP's.
+            Model::Hexapod { body: Some(b), .. } => {
+                let c = b.counts();
+                m.anchor = -1;
+                m.com = b.pose().0;
+                m.zmp_margin = b.margin();
+                m.touchdowns = c.touchdowns as i64;
+                m.collisions = c.collisions as i64;
+                m.falls = c.falls as i64;
+                m.limits = c.limits as i64;
+            }
+            _ => {}
         }
         m
     }

@@ -198,6 +198,11 @@ impl HeartbeatProducer {
         self.sent
     }
 
+    /// True when the heartbeat fell due more than `grace` before `now`, or has never gone out.
+    pub fn overdue(&self, now: Instant, grace: Duration) -> bool {
+        self.next.is_none_or(|t| now >= t + grace)
+    }
+
     /// Sends the heartbeat when it is due at `now` (a full transmit queue skips a beat).
     pub fn poll<B: CanBus + ?Sized>(&mut self, bus: &mut B, now: Instant) -> Result<(), BusError> {
         if self.next.is_some_and(|t| now < t) {

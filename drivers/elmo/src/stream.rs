@@ -341,10 +341,15 @@ impl<B: CanBus> Master<B> {
 
     /// The SYNC when due, the heartbeat, and what arrived.
     pub(crate) fn pump_states(&mut self, now: Instant) -> Result<(), MasterError> {
-        let _ = self.track.heartbeat.poll(&mut self.bus, now);
         // What arrived first: the states in it answer the SYNC already sent.
         self.take_in(now)?;
-        if now >= self.next_sync {
+        let sync = now >= self.next_sync;
+        // The heartbeat goes out with the SYNC (one batch where the bus is carried over LCM),
+        // or on its own once it is late by a SYNC period.
+        if sync || self.track.heartbeat.overdue(now, self.cfg.sync_period) {
+            let _ = self.track.heartbeat.poll(&mut self.bus, now);
+        }
+        if sync {
             self.next_sync = (self.next_sync + self.cfg.sync_period).max(now);
             match self
                 .bus

@@ -63,6 +63,8 @@ struct LeverState {
     tilt: (f64, f64),
     /// What the running board's pins showed at its last turn: PWM changes per joint.
     pwm_changes: [u64; 8],
+    /// Its joints' true positions at its last turn, rad (the plant's).
+    positions: [f64; 8],
     /// Frame delimiters (zeros) the running board has written to its line: two a frame.
     delimiters_sent: u64,
     /// Asked: the board stops (its clock, its loop, its line) until released.
@@ -85,6 +87,13 @@ impl DueLevers {
     /// [`FakeDue::pwm_changes`] of the board running with these levers, as of its last turn.
     pub fn pwm_changes(&self, joint: usize) -> u64 {
         self.0.lock().unwrap().pwm_changes[joint.min(7)]
+    }
+
+    /// The true position of joint `joint` of the board running with these levers, rad, as of
+    /// its last turn (what an instrument on the joint would measure: the simulated world's
+    /// input).
+    pub fn position(&self, joint: usize) -> f64 {
+        self.0.lock().unwrap().positions[joint.min(7)]
     }
 
     /// The frames the running board has written to its line (its frame delimiters counted:
@@ -354,6 +363,7 @@ impl FakeDue {
                     let mut l = levers.0.lock().unwrap();
                     for j in 0..self.joints.min(8) {
                         l.pwm_changes[j] = self.pwm_changes(j);
+                        l.positions[j] = self.position(j);
                     }
                     l.delimiters_sent += out.iter().filter(|&&b| b == 0).count() as u64;
                 }

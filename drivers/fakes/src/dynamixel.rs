@@ -58,6 +58,19 @@ impl ChainLevers {
     }
 }
 
+/// The servos' true positions (counts, fractional while moving), as the chain last moved
+/// them: what an instrument on the robot would measure, read while the chain runs on its
+/// thread (the simulated world's input).
+#[derive(Debug, Clone, Default)]
+pub struct ChainProbe(Arc<Mutex<BTreeMap<u8, f64>>>);
+
+impl ChainProbe {
+    /// Each servo's id and true position, counts (empty before the chain first moves).
+    pub fn positions(&self) -> BTreeMap<u8, f64> {
+        self.0.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+}
+
 /// One fake servo.
 #[derive(Debug)]
 pub struct Servo {
@@ -391,6 +404,7 @@ pub struct FakeChain {
     servos: Vec<Servo>,
     levers: ChainLevers,
     last: Option<Instant>,
+    probe: ChainProbe,
 }
 
 impl FakeChain {
@@ -401,7 +415,13 @@ impl FakeChain {
             servos,
             levers,
             last: None,
+            probe: ChainProbe::default(),
         }
+    }
+
+    /// The servos' true positions, shared with the chain once it runs.
+    pub fn probe(&self) -> ChainProbe {
+        self.probe.clone()
     }
 
     /// Runs the chain on its own thread, on `line` (wrap it in [`stride_serial::Paced`] for
@@ -534,6 +554,10 @@ impl FakeChain {
         for s in &mut self.servos {
             let f = self.levers.get(s.id);
             s.advance(dt, &f);
+        }
+        let mut probe = self.probe.0.lock().unwrap_or_else(|p| p.into_inner());
+        for s in &self.servos {
+            probe.insert(s.id, s.position);
         }
     }
 

@@ -7,11 +7,17 @@
 //!   feet and their contacts, the whole robot's centre of mass and its cart-table ZMP, and
 //!   what went wrong: a foot or shank inside an obstacle, the ZMP outside the support polygon
 //!   (a fall), a joint at its limit.
+//! - [`hexapod`]: the hexapod's body moved kinematically from its 18 joints' true positions:
+//!   level, resting on its lowest feet, its x, y and yaw the rigid fit of the anchored feet
+//!   onto where they touched down. It gives the body's pose, the feet and their contacts, the
+//!   static stability margin, and what went wrong: a foot inside an obstacle, the body's
+//!   centre outside the support polygon (a fall), a joint at its limit.
 //! - [`world`]: the scene as the body meets it (the ground's height, the obstacles' solids)
 //!   and as perfect perception sees it (obstacles, an elevation grid), with seeded noise.
 //! - [`noise`]: the seeded random numbers behind every noise, so a run repeats exactly.
 
 pub mod body;
+pub mod hexapod;
 pub mod noise;
 pub mod world;
 

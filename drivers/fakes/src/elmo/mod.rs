@@ -168,6 +168,16 @@ impl FakeElmo {
         }
     }
 
+    /// True while the motor moves or is about to: a motion or a profile playing, a quick stop
+    /// decelerating, or the motor still settling on its command (more than a count away).
+    pub fn moving(&self) -> bool {
+        let m = &self.motor;
+        m.motion.is_some()
+            || m.profile.is_some()
+            || self.drive == DriveState::QuickStopActive
+            || m.on && (m.commanded - m.actual).abs() > 0.5
+    }
+
     /// Runs the drive on its own thread, stepping every millisecond until `stop` is set.
     pub fn spawn(
         mut self,
