@@ -251,8 +251,19 @@ def spy_echo(*args, timeout=300):
 
 
 def decoded(log):
-    """(channel, message) of a log's stage channels, in order, by stride-spy."""
-    return spy_echo("--log", log, "--channel", STAGE_CHANNELS)
+    """(channel, message) of a log's stage channels, by stride-spy, in the order of their
+    header times (with the robot's local bus's log beside it, when there is one)."""
+    msgs = spy_echo("--log", log, "--channel", STAGE_CHANNELS)
+    local = local_log(log)
+    if local.exists():
+        msgs += spy_echo("--log", local, "--channel", STAGE_CHANNELS)
+        msgs.sort(key=lambda cm: cm[1]["header"]["utime"])
+    return msgs
+
+
+def local_log(log):
+    """Where the log of the robot's local bus goes beside `log`."""
+    return log.with_name(log.stem + "-local" + log.suffix)
 
 
 def stages_of(log):
@@ -336,7 +347,7 @@ def obstacle_stages_of(log):
     chunk; and the whole, seen to that chunk (the first set-point of a plan avoiding it)."""
     known, seen = set(), None
     out = {"seen→plan": [], "plan→taken": [], "taken→chunk": [], "seen→first set-point": []}
-    trial = None  # [seen, plan, taken]
+    trial = None  # [seen, the last plan made with the box, taken]
     accepted = None
     for ch, m in decoded(log):
         t = m["header"]["utime"] / 1e3
@@ -347,7 +358,8 @@ def obstacle_stages_of(log):
             if new and seen is not None and trial is None:
                 trial = [t, None, None]
             seen = t
-        elif ch == "FOOTSTEP_PLAN" and trial and trial[1] is None and m["status"] == 0:
+        elif ch == "FOOTSTEP_PLAN" and trial and trial[2] is None and m["status"] == 0:
+            # The plan the gait takes next (a plan answering a step already past is dropped).
             began = t - (m["prepare_time_us"] + m["search_time_us"]) / 1e3
             if began >= trial[0]:
                 trial[1] = t
@@ -392,8 +404,15 @@ def walk_logged(hosts, log, goal, timeout, sim_config=None):
         procs.append(subprocess.Popen(
             on[host](REL / "stride", "--lcm-url", url, "--log-level", "warn", *args,
                      "--log-dir", logs / host), env=env, stdout=subprocess.DEVNULL))
-    logger = subprocess.Popen(on["robot"]("lcm-logger", "-q", "-f", "-c", STAGE_CHANNELS,
-                                          f"--lcm-url={url}", log))
+    loggers = [subprocess.Popen(on["robot"]("lcm-logger", "-q", "-f", "-c", STAGE_CHANNELS,
+                                            f"--lcm-url={url}", log))]
+    if hosts is not None:
+        # The trajectories stay on the robot's own bus: logged there too.
+        import tomllib
+        local = tomllib.loads(profile.read_text())["local"]["robot"]["url"]
+        loggers.append(subprocess.Popen(on["robot"](
+            "lcm-logger", "-q", "-f", "-c", STAGE_CHANNELS, f"--lcm-url={local}",
+            local_log(log))))
     try:
         # Every app up and the gait standing at its pose before the goal goes.
         time.sleep(25)
@@ -402,8 +421,9 @@ def walk_logged(hosts, log, goal, timeout, sim_config=None):
                            capture_output=True, text=True, env=env, timeout=timeout + 60)
         summary = r.stdout.strip().splitlines()[0] if r.stdout.strip() else r.stderr.strip()
     finally:
-        logger.send_signal(2)
-        logger.wait()
+        for logger in loggers:
+            logger.send_signal(2)
+            logger.wait()
         for p in procs:
             p.send_signal(2)
         for p in procs:
@@ -453,10 +473,12 @@ def stages_bench(goal, timeout):
 def obstacle_bench(trials):
     """Boxes appearing ahead of the walking robot, on one host and split: seen to the first
     set-point of a plan avoiding each."""
-    length = round(0.3 * (4 + 2 * trials) + 3.0, 1)
+    # About 0.1 m a step (the robot steps around the boxes), 1 s each: the corridor is long
+    # enough for every box to appear before the goal.
+    length = round(0.15 * (4 + 2 * trials) + 3.0, 1)
     sim = obstacle_world(trials, length)
     goal = f"{length - 1.0},0"
-    timeout = int(60 + 3 * (4 + 2 * trials))
+    timeout = int(120 + 3 * (4 + 2 * trials))
     tmp = Path(tempfile.mkdtemp())
     log(f"obstacles: {trials} boxes appear on a {length} m corridor, one host")
     one = walk_logged(None, tmp / "one.lcmlog", goal, timeout, sim)

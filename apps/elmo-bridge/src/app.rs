@@ -97,10 +97,12 @@ pub struct ElmoApp<'n> {
     // Dropped in this order: the bridge (its bus) before the fake drives.
     bridge: Bridge<Box<dyn CanBus + 'n>>,
     _sim: Option<Sim<FakeElmo>>,
-    _sub: lcm::Subscription,
+    sub: lcm::Subscription,
     rx: std::sync::mpsc::Receiver<JointTrajectoryT>,
-    _stop_sub: lcm::Subscription,
+    stop_sub: lcm::Subscription,
     stops: std::sync::mpsc::Receiver<GaitCommandT>,
+    /// Trajectories and stops taken so far (see [`Tick::urgent`]).
+    urgent_seen: u64,
     cfg: BridgeConfig,
     throttle: Throttle,
     states: Stamper,
@@ -131,10 +133,11 @@ impl<'n> ElmoApp<'n> {
         Ok(ElmoApp {
             bridge,
             _sim: sim,
-            _sub: sub,
+            sub,
             rx,
-            _stop_sub: stop_sub,
+            stop_sub,
             stops,
+            urgent_seen: 0,
             period: Duration::from_secs_f64(1.0 / cfg.state_rate_hz),
             idle_period: Duration::from_secs_f64(1.0 / cfg.idle_state_rate_hz),
             cfg,
@@ -148,6 +151,15 @@ impl<'n> ElmoApp<'n> {
 }
 
 impl Tick for ElmoApp<'_> {
+    // The drives' frames are taken at the master's own times (its SYNC, a motion's start), as
+    // from a serial dongle, whose frames never wake the loop; trajectories and stops at once.
+    const WAKE_ON_MESSAGE: bool = false;
+
+    fn urgent(&mut self) -> bool {
+        let n = self.sub.stats().received + self.stop_sub.stats().received;
+        std::mem::replace(&mut self.urgent_seen, n) != n
+    }
+
     fn tick(&mut self, node: &Node, now: Instant) -> anyhow::Result<Instant> {
         while let Ok(c) = self.stops.try_recv() {
             match c.command {
