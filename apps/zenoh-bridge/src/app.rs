@@ -53,6 +53,9 @@ fn lock(s: &Mutex<State>) -> std::sync::MutexGuard<'_, State> {
 /// back (liblcm loops it back in well under a millisecond).
 const ECHO_MEMORY: Duration = Duration::from_secs(2);
 
+/// Messages from the bus that may wait for the bridge (liblcm's queue of the subscription).
+const BUS_QUEUE: usize = 10_000;
+
 /// The running bridge.
 pub struct Bridge {
     session: zenoh::Session,
@@ -195,6 +198,11 @@ impl Bridge {
                 }
             })
             .context("subscribing to the bus")?;
+        // A burst from the bus waits for the callback in liblcm's queue: its default of 30
+        // messages dropped the rest of a burst of 32 or more before it reached Zenoh.
+        lcm_sub
+            .set_queue_capacity(BUS_QUEUE)
+            .context("sizing the bus's queue")?;
         tracing::info!(
             "bridging bus {:?} under {}/**: listening on {:?}, connecting to {:?}",
             cfg.bus,
