@@ -7,7 +7,7 @@ use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use stride_gait::archie::{ArchieGait, JointPlan};
+use stride_gait::archie::{ArchieGait, JointPlan, Joints};
 use stride_gait::hexapod::{HexConfig, HexGait, HexRow};
 use stride_gait::pattern::Pattern;
 use stride_gait::timeline::Footstep;
@@ -148,30 +148,36 @@ struct Rows {
     /// Per group: a row of its joints per time.
     pos: Vec<Vec<Vec<f64>>>,
     vel: Vec<Vec<Vec<f64>>>,
+    /// Archie's: the pattern's start (walker time) and the stabiliser's hip correction.
+    of: Option<(f64, [f64; 2])>,
 }
 
 impl Rows {
     fn of_plan(start: f64, plan: &JointPlan, stab: [f64; 2]) -> Rows {
-        let leg = |rows: &stride_gait::archie::LegRows| -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
-            (
-                rows.positions
-                    .iter()
-                    .map(|q| {
-                        let mut q = q.to_vec();
-                        q[1] += stab[0];
-                        q[2] += stab[1];
-                        q
-                    })
-                    .collect(),
-                rows.velocities.iter().map(|v| v.to_vec()).collect(),
-            )
+        let mut r = Rows {
+            times: Vec::with_capacity(plan.times.len()),
+            pos: vec![Vec::new(), Vec::new()],
+            vel: vec![Vec::new(), Vec::new()],
+            of: Some((start, stab)),
         };
-        let (lp, lv) = leg(&plan.left);
-        let (rp, rv) = leg(&plan.right);
-        Rows {
-            times: plan.times.iter().map(|t| start + t).collect(),
-            pos: vec![lp, rp],
-            vel: vec![lv, rv],
+        r.extend(plan);
+        r
+    }
+
+    /// Takes the rows of `plan` (those it was made of, and more) not taken yet.
+    fn extend(&mut self, plan: &JointPlan) {
+        let Some((start, stab)) = self.of else {
+            return;
+        };
+        for i in self.times.len()..plan.times.len() {
+            self.times.push(start + plan.times[i]);
+            for (g, rows) in [&plan.left, &plan.right].into_iter().enumerate() {
+                let mut q = rows.positions[i].to_vec();
+                q[1] += stab[0];
+                q[2] += stab[1];
+                self.pos[g].push(q);
+                self.vel[g].push(rows.velocities[i].to_vec());
+            }
         }
     }
 
@@ -192,6 +198,7 @@ impl Rows {
                 .iter()
                 .map(|r| r.speed.iter().flatten().copied().collect())
                 .collect()],
+            of: None,
         }
     }
 
@@ -200,6 +207,7 @@ impl Rows {
             times: vec![t],
             pos: q.iter().map(|g| vec![g.clone()]).collect(),
             vel: q.iter().map(|g| vec![vec![0.0; g.len()]]).collect(),
+            of: None,
         }
     }
 
@@ -253,8 +261,9 @@ enum Body {
     Archie {
         legs: Box<ArchieGait>,
         walker: Box<Walker>,
-        /// The joints of the walker's pattern.
-        joints: Box<JointPlan>,
+        /// The joints of the walker's pattern, made as far as it can play (the rest, should
+        /// it be needed, as the stream comes near).
+        joints: Box<Joints>,
         plans: Receiver<FootstepPlanT>,
         plans_sub: lcm::Subscription,
     },
@@ -296,6 +305,9 @@ pub struct GaitApp {
     /// (None: nothing of them sent yet: the next chunk replaces).
     rows: Rows,
     sent: Option<usize>,
+    /// A pattern just taken: its first chunk goes out at once, not when the lookahead
+    /// reaches it (the drives' bridges have the change as early as they can).
+    fresh: bool,
     /// Rows not to be sent to trajectory bridges (they stand still already).
     quiet: bool,
     period: Period,
@@ -317,6 +329,10 @@ pub struct GaitApp {
 
 /// The loop's period while the robot stands with nothing to do.
 const IDLE_TICK: Duration = Duration::from_millis(20);
+
+/// Rows of the pattern are made this far (s) beyond the stream's reach when they were not
+/// made with it (see `GaitApp::make_rows`).
+const MAKE_AHEAD: f64 = 0.5;
 
 fn now_utime() -> i64 {
     std::time::SystemTime::now()
@@ -347,7 +363,7 @@ impl GaitApp {
                     .map_err(|e| anyhow::anyhow!("{e}"))?;
                 // The standing pose must be within the legs' reach and limits (a COM height
                 // set by hand, the thesis's 0.72 m, is not).
-                let joints = legs.joints(walker.pattern()).map_err(|e| {
+                let joints = legs.joints_until(walker.pattern(), f64::INFINITY).map_err(|e| {
                     anyhow::anyhow!(
                         "the gait's standing pose (COM {:.3} m high) is out of the legs' reach: {e}",
                         legs.z_c
@@ -480,6 +496,7 @@ impl GaitApp {
             phase: Phase::Waiting(0.0),
             rows: stand,
             sent: None,
+            fresh: false,
             quiet: true,
         })
     }
@@ -504,7 +521,7 @@ fn on_grid(walker: &Walker, t: f64, switch_ahead: f64, stream_end: Option<f64>) 
 fn standing_rows(body: &Body, groups: usize) -> Rows {
     match body {
         Body::Archie { joints, walker, .. } => {
-            let mut r = Rows::of_plan(walker.pattern().timeline.start, joints, [0.0; 2]);
+            let mut r = Rows::of_plan(walker.pattern().timeline.start, &joints.plan, [0.0; 2]);
             r.pos.truncate(groups.max(2));
             r
         }
@@ -562,11 +579,13 @@ impl GaitApp {
     /// taken, a stand: the walker switches beyond what was sent) replaces from its start. One
     /// that starts in the past kept what was sent (a plan refused with nothing to change):
     /// the stream goes on from the last row sent, or, standing quiet, stays quiet.
-    fn adopt(&mut self, plan: JointPlan, t: f64) {
+    fn adopt(&mut self, plan: Joints, t: f64) {
         let stab = self.stabiliser_now();
         let stream_end = self.stream_end(t);
         if let Body::Archie { walker, joints, .. } = &mut self.body {
-            let rows = Rows::of_plan(walker.pattern().timeline.start, &plan, stab);
+            let rows = Rows::of_plan(walker.pattern().timeline.start, &plan.plan, stab);
+            // Its first rows go to the trajectory bridges at once (see `stream`).
+            self.fresh = true;
             if stream_end.is_some_and(|e| (rows.times[0] - e).abs() < 1e-6) {
                 // It takes over where the stream sent so far ends: appended there.
                 self.sent = Some(0);
@@ -624,7 +643,8 @@ impl GaitApp {
         for m in rx.try_iter() {
             let t = (m.header.utime - self.utime0) as f64 * 1e-6;
             // Before the pattern now played, or not made of numbers: nothing to compare.
-            let (Some(gait), Some(world)) = (pelvis_at(joints, start, t), odometry_pelvis(&m))
+            let (Some(gait), Some(world)) =
+                (pelvis_at(&joints.plan, start, t), odometry_pelvis(&m))
             else {
                 continue;
             };
@@ -668,7 +688,7 @@ impl GaitApp {
                 (GaitCommandT::COMMAND_STOP, Body::Archie { walker, legs, .. }) => {
                     tracing::info!("stop: {}", c.reason);
                     walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
-                    match legs.joints(walker.pattern()) {
+                    match legs.joints_until(walker.pattern(), f64::INFINITY) {
                         Ok(j) => self.adopt(j, t),
                         Err(e) => self.fault(node, format!("stopping: {e}")),
                     }
@@ -799,6 +819,7 @@ impl GaitApp {
                     times: Vec::new(),
                     pos: Vec::new(),
                     vel: Vec::new(),
+                    of: None,
                 };
                 let start = t + self.cfg.lookahead;
                 for (a, b) in from.iter().zip(&stand) {
@@ -856,7 +877,7 @@ impl GaitApp {
             match Walker::new(gen, self.cfg.walker, t, left, right, 0)
                 .map_err(|e| e.to_string())
                 .and_then(|w| {
-                    legs.joints(w.pattern())
+                    legs.joints_until(w.pattern(), f64::INFINITY)
                         .map(|j| (w, j))
                         .map_err(|e| e.to_string())
                 }) {
@@ -890,14 +911,14 @@ impl GaitApp {
         else {
             return;
         };
-        let cache: RefCell<Option<JointPlan>> = RefCell::new(None);
-        let check = |p: &Pattern| -> Result<(), GaitError> {
-            let j = legs.joints(p)?;
+        let cache: RefCell<Option<Joints>> = RefCell::new(None);
+        let check = |p: &Pattern, until: f64| -> Result<(), GaitError> {
+            let j = legs.joints_until(p, until)?;
             *cache.borrow_mut() = Some(j);
             Ok(())
         };
         let reach = |_: &Footstep, _: &[f64; 4]| -> Result<(), String> { Ok(()) };
-        let mut adopt: Option<JointPlan> = None;
+        let mut adopt: Option<Joints> = None;
         let mut refusals = Vec::new();
         let mut taken = 0;
         while let Ok(msg) = plans.try_recv() {
@@ -928,7 +949,7 @@ impl GaitApp {
                 Verdict::Refused(why) => {
                     refusals.push(why);
                     // The walker stands soon: its joints.
-                    adopt = legs.joints(walker.pattern()).ok();
+                    adopt = legs.joints_until(walker.pattern(), f64::INFINITY).ok();
                 }
                 Verdict::Late { echo, now } => {
                     tracing::debug!("plan for step {echo} came during step {now}: dropped");
@@ -945,7 +966,7 @@ impl GaitApp {
             if let Some(j) = cache.borrow_mut().take() {
                 adopt = Some(j);
             } else {
-                match legs.joints(walker.pattern()) {
+                match legs.joints_until(walker.pattern(), f64::INFINITY) {
                     Ok(j) => adopt = Some(j),
                     // The walker's own stand, unchecked: the rows already made go on.
                     Err(e) => tracing::error!(
@@ -966,6 +987,7 @@ impl GaitApp {
         if let Some(j) = adopt {
             self.adopt(j, t);
         }
+        self.make_rows(t);
         if !stopped {
             let note = self.goal_note.clone();
             self.set_status(
@@ -978,6 +1000,44 @@ impl GaitApp {
             );
         }
         self.track(node, t, now);
+    }
+
+    /// Makes the rows of the walker's pattern that the stream comes near and were not made
+    /// with it (a plan's pattern is made as far as it can play before a newer plan or the
+    /// stop replaces it: this holds should neither come in time). Rows beyond the legs end
+    /// the walk in a stand, from the end of those made.
+    fn make_rows(&mut self, t: f64) {
+        let need = t + self.cfg.lookahead + self.cfg.chunk + MAKE_AHEAD;
+        let stream_end = self.stream_end(t);
+        let Body::Archie {
+            legs,
+            walker,
+            joints,
+            ..
+        } = &mut self.body
+        else {
+            return;
+        };
+        if joints.complete() || self.rows.end() >= need {
+            return;
+        }
+        match legs.extend(walker.pattern(), joints, need + MAKE_AHEAD) {
+            Ok(()) => self.rows.extend(&joints.plan),
+            Err(e) => {
+                let why = format!("the pattern's later rows are beyond the legs ({e})");
+                walker.halt(
+                    on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end),
+                    &why,
+                );
+                match legs.joints_until(walker.pattern(), f64::INFINITY) {
+                    Ok(j) => self.adopt(j, t),
+                    Err(e) => tracing::error!(
+                        "the walker's stand is beyond the legs ({e}): the rows made go on"
+                    ),
+                }
+                self.refused(why);
+            }
+        }
     }
 
     /// Takes goals, and asks the planner for the way there at every step (Archie).
@@ -1065,7 +1125,7 @@ impl GaitApp {
                 let stream_end = self.stream_end(t);
                 if let Body::Archie { walker, legs, .. } = &mut self.body {
                     walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
-                    if let Ok(j) = legs.joints(walker.pattern()) {
+                    if let Ok(j) = legs.joints_until(walker.pattern(), f64::INFINITY) {
                         self.adopt(j, t);
                     }
                 }
@@ -1085,7 +1145,7 @@ impl GaitApp {
             let last = self.rows.times.len() - 1;
             let (i0, append) = match self.sent {
                 Some(i) if i >= last => break,
-                Some(i) if self.rows.times[i] >= t + self.cfg.lookahead => break,
+                Some(i) if self.rows.times[i] >= t + self.cfg.lookahead && !self.fresh => break,
                 Some(i) => (i, true),
                 None => (0, false),
             };
@@ -1108,7 +1168,9 @@ impl GaitApp {
                 node.publisher().publish(&ch, &m)?;
             }
             self.sent = Some(i1);
+            self.fresh = false;
         }
+        self.fresh = false;
         Ok(())
     }
 
@@ -1261,7 +1323,7 @@ impl Tick for GaitApp {
             return Ok(());
         }
         if let Body::Archie { walker, legs, .. } = &self.body {
-            match legs.joints(walker.pattern()) {
+            match legs.joints_until(walker.pattern(), f64::INFINITY) {
                 Ok(j) => self.adopt(j, t),
                 Err(e) => {
                     tracing::error!("no stand from here: {e}");

@@ -26,8 +26,9 @@ fn plans_that_stop_coming_mid_walk_end_in_a_stand_the_legs_can_make() {
     let stride = cfg.walker.max_length;
     let step = |n: i64| common::straight(n, stride);
     let cache = RefCell::new(None);
-    let check = |p: &Pattern| -> Result<(), GaitError> {
-        *cache.borrow_mut() = Some(legs.joints(p)?);
+    // The legs checked as far as the pattern can play, as the gait does.
+    let check = |p: &Pattern, until: f64| -> Result<(), GaitError> {
+        *cache.borrow_mut() = Some(legs.joints_until(p, until)?.plan);
         Ok(())
     };
     let reach = |_: &Footstep, _: &[f64; 4]| Ok(());

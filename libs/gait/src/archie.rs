@@ -91,6 +91,44 @@ pub struct JointPlan {
     pub right: LegRows,
 }
 
+/// A pattern's joint trajectories made up to some time ([`ArchieGait::joints_until`]).
+#[derive(Debug, Clone)]
+pub struct Joints {
+    /// The rows made and checked so far.
+    pub plan: JointPlan,
+    made: Made,
+}
+
+/// Where making a pattern's rows stands: every row's positions made so far (one or two more
+/// than the plan keeps: its last velocities need them) and the solver's guesses for the next.
+#[derive(Debug, Clone)]
+struct Made {
+    /// The pattern's samples that are rows.
+    ks: Vec<usize>,
+    times: Vec<f64>,
+    pelvis: Vec<Pose>,
+    pos: Vec<[Q; 2]>,
+    near: [Q; 2],
+    offset: V3,
+    seen: Vec<V3>,
+}
+
+impl Joints {
+    /// Every row of the pattern is made.
+    pub fn complete(&self) -> bool {
+        self.plan.times.len() == self.made.ks.len()
+    }
+}
+
+fn truncate_plan(p: &mut JointPlan, n: usize) {
+    p.times.truncate(n);
+    p.pelvis.truncate(n);
+    for rows in [&mut p.left, &mut p.right] {
+        rows.positions.truncate(n);
+        rows.velocities.truncate(n);
+    }
+}
+
 /// Archie's joints over patterns.
 #[derive(Debug, Clone)]
 pub struct ArchieGait {
@@ -307,16 +345,78 @@ impl ArchieGait {
 
     /// The joint trajectories of a pattern, checked (see the module).
     pub fn joints(&self, pat: &Pattern) -> Result<JointPlan, GaitError> {
+        Ok(self.joints_until(pat, f64::INFINITY)?.plan)
+    }
+
+    /// The joint trajectories of a pattern's start, checked, up to the first row at or after
+    /// `until` (the pattern's time, s); [`ArchieGait::extend`] makes the rest, row for row what
+    /// [`ArchieGait::joints`] makes. A plan's later rows, which a newer plan replaces before
+    /// they play, then cost nothing.
+    pub fn joints_until(&self, pat: &Pattern, until: f64) -> Result<Joints, GaitError> {
         let stride = ((self.row_period / pat.dt).round() as usize).max(1);
         let ks: Vec<usize> = (0..pat.samples.len()).step_by(stride).collect();
-        let mut near = [[0.0, 0.0, 0.0, 0.3, -0.15, 0.0]; 2];
-        let mut offset = self.offset;
-        let mut pos: Vec<[Q; 2]> = Vec::with_capacity(ks.len());
-        let mut pelvises = Vec::with_capacity(ks.len());
-        let mut times = Vec::with_capacity(ks.len());
-        // The offsets found for the last rows, newest first (at most three).
-        let mut seen: Vec<V3> = Vec::with_capacity(4);
-        for &k in &ks {
+        let n = ks.len();
+        let mut j = Joints {
+            plan: JointPlan {
+                times: Vec::with_capacity(n),
+                pelvis: Vec::with_capacity(n),
+                left: LegRows {
+                    names: self.robot.names(Leg::Left),
+                    positions: Vec::with_capacity(n),
+                    velocities: Vec::with_capacity(n),
+                },
+                right: LegRows {
+                    names: self.robot.names(Leg::Right),
+                    positions: Vec::with_capacity(n),
+                    velocities: Vec::with_capacity(n),
+                },
+            },
+            made: Made {
+                ks,
+                times: Vec::with_capacity(n),
+                pelvis: Vec::with_capacity(n),
+                pos: Vec::with_capacity(n),
+                near: [[0.0, 0.0, 0.0, 0.3, -0.15, 0.0]; 2],
+                offset: self.offset,
+                seen: Vec::with_capacity(4),
+            },
+        };
+        self.extend(pat, &mut j, until)?;
+        Ok(j)
+    }
+
+    /// Makes and checks `j`'s rows of `pat` (the pattern it was begun on) up to the first at
+    /// or after `until`; an error leaves `j` as it was.
+    pub fn extend(&self, pat: &Pattern, j: &mut Joints, until: f64) -> Result<(), GaitError> {
+        if j.complete() {
+            return Ok(());
+        }
+        let m = &mut j.made;
+        let total = m.ks.len();
+        if total == 0 {
+            return Ok(());
+        }
+        // The rows kept: through the first at or after `until` (all, at the end); their
+        // velocities need the positions of one more row, and the first's of two more.
+        let first_after = m.ks[..]
+            .partition_point(|&k| pat.samples[k].t < until)
+            .min(total - 1);
+        let keep = (first_after + 1).max(j.plan.times.len());
+        let need = if keep == total {
+            total
+        } else {
+            (keep + 1).max(3).min(total)
+        };
+        let before = (m.pos.len(), j.plan.times.len());
+        let undo = |m: &mut Made, j_plan: &mut JointPlan| {
+            m.times.truncate(before.0);
+            m.pelvis.truncate(before.0);
+            m.pos.truncate(before.0);
+            truncate_plan(j_plan, before.1);
+        };
+        let saved = (m.near, m.offset, m.seen.clone());
+        for i in m.pos.len()..need {
+            let k = m.ks[i];
             let s = &pat.samples[k];
             let feet = [s.feet[0][0], s.feet[1][0]];
             let (com, yaw) = self.com_at(pat, k);
@@ -324,30 +424,38 @@ impl ArchieGait {
             // them); before there are three, it is the last one found (a pattern that starts
             // mid-walk starts from an offset unlike the standing one: extrapolating from that
             // would throw the first guess far off).
-            if let [a, b, c] = seen[..] {
+            if let [a, b, c] = m.seen[..] {
                 for d in 0..3 {
-                    offset[d] = 3.0 * a[d] - 3.0 * b[d] + c[d];
+                    m.offset[d] = 3.0 * a[d] - 3.0 * b[d] + c[d];
                 }
-            } else if let Some(a) = seen.first() {
-                offset = *a;
+            } else if let Some(a) = m.seen.first() {
+                m.offset = *a;
             }
-            let (pelvis, q) = self
-                .place(com, yaw, &feet, &near, &mut offset)
-                .map_err(|e| {
-                    GaitError::Plan(format!("at {:.3} s: {e}", s.t - pat.timeline.start))
-                })?;
-            seen.insert(0, offset);
-            seen.truncate(3);
-            near = q;
-            pos.push(q);
-            pelvises.push(pelvis);
-            times.push(s.t - pat.timeline.start);
+            let placed = self.place(com, yaw, &feet, &m.near, &mut m.offset);
+            let (pelvis, q) = match placed {
+                Ok(r) => r,
+                Err(e) => {
+                    (m.near, m.offset, m.seen) = saved;
+                    undo(m, &mut j.plan);
+                    return Err(GaitError::Plan(format!(
+                        "at {:.3} s: {e}",
+                        s.t - pat.timeline.start
+                    )));
+                }
+            };
+            m.seen.insert(0, m.offset);
+            m.seen.truncate(3);
+            m.near = q;
+            m.pos.push(q);
+            m.pelvis.push(pelvis);
+            m.times.push(s.t - pat.timeline.start);
         }
         // Velocities: central differences; one-sided (second order) at the ends, which a
         // pattern from standing has at rest and a pattern replacing another in motion.
+        let (pos, times) = (&m.pos, &m.times);
         let n = pos.len();
-        let d = |i: usize, l: usize, j: usize| -> f64 {
-            let p = |k: usize| pos[k][l][j];
+        let d = |i: usize, l: usize, jt: usize| -> f64 {
+            let p = |k: usize| pos[k][l][jt];
             if n < 3 {
                 0.0
             } else if i == 0 {
@@ -358,35 +466,38 @@ impl ArchieGait {
                 (p(i + 1) - p(i - 1)) / (times[i + 1] - times[i - 1])
             }
         };
-        let mut vel: Vec<[Q; 2]> = (0..n)
-            .map(|i| std::array::from_fn(|l| std::array::from_fn(|j| d(i, l, j))))
-            .collect();
-        // A pattern ends standing: its last row at rest (the settled COM's creep, under a
-        // millimetre a second, ends there), so a drive playing it ends its motion rather than
-        // stopping a stream.
-        if let Some(v) = vel.last_mut() {
-            *v = [[0.0; 6]; 2];
+        let plan = &mut j.plan;
+        for i in plan.times.len()..keep {
+            plan.times.push(times[i]);
+            plan.pelvis.push(m.pelvis[i]);
+            plan.left.positions.push(pos[i][0]);
+            plan.right.positions.push(pos[i][1]);
+            // A pattern ends standing: its last row at rest (the settled COM's creep, under a
+            // millimetre a second, ends there), so a drive playing it ends its motion rather
+            // than stopping a stream.
+            let v: [Q; 2] = if i + 1 == total {
+                [[0.0; 6]; 2]
+            } else {
+                std::array::from_fn(|l| std::array::from_fn(|jt| d(i, l, jt)))
+            };
+            plan.left.velocities.push(v[0]);
+            plan.right.velocities.push(v[1]);
         }
-        let plan = JointPlan {
-            times,
-            pelvis: pelvises,
-            left: LegRows {
-                names: self.robot.names(Leg::Left),
-                positions: pos.iter().map(|q| q[0]).collect(),
-                velocities: vel.iter().map(|v| v[0]).collect(),
-            },
-            right: LegRows {
-                names: self.robot.names(Leg::Right),
-                positions: pos.iter().map(|q| q[1]).collect(),
-                velocities: vel.iter().map(|v| v[1]).collect(),
-            },
-        };
-        self.check(&plan)?;
-        Ok(plan)
+        if let Err(e) = self.check_from(plan, before.1.saturating_sub(1)) {
+            (m.near, m.offset, m.seen) = saved;
+            undo(m, plan);
+            return Err(e);
+        }
+        Ok(())
     }
 
     /// Checks every row and the cubic between rows of both legs against the joints' limits.
     pub fn check(&self, plan: &JointPlan) -> Result<(), GaitError> {
+        self.check_from(plan, 0)
+    }
+
+    /// [`ArchieGait::check`] from row `first` on.
+    fn check_from(&self, plan: &JointPlan, first: usize) -> Result<(), GaitError> {
         for rows in [&plan.left, &plan.right] {
             for (j, spec) in self.robot.joint.iter().enumerate() {
                 let b = Bounds {
@@ -395,7 +506,7 @@ impl ArchieGait {
                     v: spec.max_velocity,
                     a: spec.max_acceleration,
                 };
-                for i in 0..plan.times.len().saturating_sub(1) {
+                for i in first..plan.times.len().saturating_sub(1) {
                     let (t0, t1) = (plan.times[i], plan.times[i + 1]);
                     let (p0, v0) = (rows.positions[i][j], rows.velocities[i][j]);
                     let (p1, v1) = (rows.positions[i + 1][j], rows.velocities[i + 1][j]);

@@ -30,6 +30,12 @@ use crate::swing::Place;
 use crate::timeline::{Footstep, Phase, Side};
 use crate::GaitError;
 
+/// Checks a pattern against the robot's legs and their limits, up to a time of the pattern's
+/// clock: as far as it can play before the walker replaces it (a plan's pattern gives way to
+/// the next plan, or to the stop when none comes, within `steps_per_plan` + 1 steps);
+/// infinite: all of it.
+pub type JointsCheck<'a> = dyn Fn(&Pattern, f64) -> Result<(), GaitError> + 'a;
+
 /// The per-step limits and the walker's timing.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -338,13 +344,43 @@ impl Walker {
         &mut self,
         now: f64,
         steps: Vec<Footstep>,
-        joints: &dyn Fn(&Pattern) -> Result<(), GaitError>,
+        joints: &JointsCheck,
+    ) -> Result<(), GaitError> {
+        self.replace_until(now, steps, None, joints)
+    }
+
+    /// [`Walker::replace`], the legs checked up to the touch-down of step `until` (a step
+    /// number; None: to the end).
+    fn replace_until(
+        &mut self,
+        now: f64,
+        steps: Vec<Footstep>,
+        until: Option<i64>,
+        joints: &JointsCheck,
     ) -> Result<(), GaitError> {
         let (_, start) = self.switch(now);
         let pat = self.gen.plan(&start, &steps)?;
-        joints(&pat)?;
+        let end = until
+            .and_then(|n| {
+                let tl = &pat.timeline;
+                tl.steps
+                    .iter()
+                    .find(|s| s.footstep.number == n)
+                    .map(|s| s.land)
+            })
+            .unwrap_or(f64::INFINITY);
+        joints(&pat, end)?;
         self.pattern = pat;
         Ok(())
+    }
+
+    /// How many steps beyond the last that can play from a plan's pattern are made with it:
+    /// those the preview of its last played sample sees (each step lasts at least t_min), and
+    /// one more for the ZMP's shift toward it. The pattern's samples up to there are the
+    /// whole plan's.
+    fn previewed_steps(&self) -> usize {
+        let c = self.gen.config();
+        (c.preview.horizon / c.timing.t_min).ceil() as usize + 1
     }
 
     /// Takes a plan that came at `now` (see the module). `feet_reach` checks a foothold;
@@ -354,7 +390,7 @@ impl Walker {
         plan: &Plan,
         now: f64,
         reach: Reach,
-        joints: &dyn Fn(&Pattern) -> Result<(), GaitError>,
+        joints: &JointsCheck,
     ) -> Verdict {
         if self.stopped {
             return Verdict::Stopped;
@@ -401,8 +437,15 @@ impl Walker {
         let at_goal = plan.reaches_goal || real < steps.len() || steps.is_empty();
         steps.truncate(real);
         let first = steps.first().map_or(plan.echo + 1, |f| f.number);
+        // What can play of the plan: its steps up to `steps_per_plan` beyond the echo, and the
+        // next, with which the walk stops when no newer plan comes. The pattern is made of
+        // those and the steps its preview sees; the legs are checked up to that next step's
+        // touch-down. A plan's later steps give way to the next plan before they play.
+        let walked = self.cfg.steps_per_plan as usize;
+        let stop_step = steps.get(walked).map(|f| f.number);
+        steps.truncate(walked + 1 + self.previewed_steps());
         kept.extend(steps);
-        match self.replace(now, kept, joints) {
+        match self.replace_until(now, kept, stop_step, joints) {
             Ok(()) => {
                 self.counters.taken += 1;
                 self.last_valid = now;
@@ -423,7 +466,7 @@ impl Walker {
         self.following = false;
         let (_, start) = self.switch(now);
         let steps = self.together(&start, Vec::new());
-        let ok = |_: &Pattern| Ok(());
+        let ok = |_: &Pattern, _: f64| Ok(());
         if self.replace(now, steps, &ok).is_err() {
             // Keep what is under way: it ends standing too.
         }
@@ -485,6 +528,15 @@ impl Walker {
         }
     }
 
+    /// The rest of the pattern cannot be played (its later rows, made as the walk comes near
+    /// them, are beyond the legs): counted as a refusal, the feet come together at `now` and
+    /// the robot stands.
+    pub fn halt(&mut self, now: f64, why: &str) {
+        self.counters.refused += 1;
+        self.note = format!("plan refused: {why}");
+        self.stand_soon(now);
+    }
+
     /// Takes plans again after a stop.
     pub fn resume(&mut self) {
         self.stopped = false;
@@ -494,7 +546,7 @@ impl Walker {
     /// Keeps the walk going at `now`: when the taken steps are about to run out before the
     /// goal, adds in-place steps (for at most `plan_timeout` after the last valid plan), then
     /// brings the feet together. Returns true when the pattern changed.
-    pub fn tick(&mut self, now: f64, joints: &dyn Fn(&Pattern) -> Result<(), GaitError>) -> bool {
+    pub fn tick(&mut self, now: f64, joints: &JointsCheck) -> bool {
         if self.stopped {
             return false;
         }
@@ -582,7 +634,7 @@ impl Walker {
         self.counters.stops += 1;
         self.note = note;
         let steps = self.together(start, steps);
-        self.replace(now, steps, &|_| Ok(())).is_ok()
+        self.replace(now, steps, &|_, _| Ok(())).is_ok()
     }
 
     /// Makes the pattern `steps`, then the feet side by side (in place from a long stride is
@@ -593,7 +645,7 @@ impl Walker {
         now: f64,
         start: &Start,
         steps: Vec<Footstep>,
-        joints: &dyn Fn(&Pattern) -> Result<(), GaitError>,
+        joints: &JointsCheck,
     ) -> Result<(), GaitError> {
         let mut steps = self.together(start, steps);
         let mut feet = [start.feet[0][0], start.feet[1][0]];

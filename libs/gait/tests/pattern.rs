@@ -365,6 +365,37 @@ fn archies_joints_follow_the_pattern_within_their_limits() {
 }
 
 #[test]
+fn joints_made_a_part_at_a_time_are_the_whole_patterns_row_for_row() {
+    let (_, p) = walk(Kind::Preview, 8, 0.15);
+    let a = archie();
+    let whole = a.joints(&p).unwrap();
+    let t0 = p.timeline.start;
+    // Before the first row, inside, and in uneven pieces to the end.
+    let mut j = a.joints_until(&p, t0 - 1.0).unwrap();
+    assert_eq!(j.plan.times.len(), 1);
+    assert!(!j.complete());
+    let mut kept = 1;
+    for until in [0.004, 0.5, 0.51, 1.7, 3.333, 6.0] {
+        a.extend(&p, &mut j, t0 + until).unwrap();
+        let n = j.plan.times.len();
+        assert!(n >= kept, "rows went back");
+        kept = n;
+        // The rows reach `until` and no row is made twice.
+        assert!(*j.plan.times.last().unwrap() >= until - 1e-9 || j.complete());
+        assert!(j.plan.times.windows(2).all(|w| w[1] > w[0]));
+    }
+    a.extend(&p, &mut j, f64::INFINITY).unwrap();
+    assert!(j.complete());
+    assert_eq!(j.plan, whole);
+    // A part's rows are the whole's.
+    let part = a.joints_until(&p, t0 + 2.0).unwrap();
+    let n = part.plan.times.len();
+    assert!(n > 2 && n < whole.times.len());
+    assert_eq!(part.plan.left.positions[..], whole.left.positions[..n]);
+    assert_eq!(part.plan.right.velocities[..], whole.right.velocities[..n]);
+}
+
+#[test]
 fn the_multibody_zmp_agrees_with_the_cart_table_zmp() {
     let (g, p) = walk(Kind::Preview, 8, 0.15);
     let a = archie();

@@ -14,7 +14,7 @@ fn ok(_: &Footstep, _: &[f64; 4]) -> Result<(), String> {
     Ok(())
 }
 
-fn any(_: &Pattern) -> Result<(), GaitError> {
+fn any(_: &Pattern, _: f64) -> Result<(), GaitError> {
     Ok(())
 }
 
@@ -197,7 +197,8 @@ fn a_bad_plan_is_refused_with_its_reason_and_the_robot_stands() {
     assert_eq!(w.counters().refused, 3);
     assert!(w.note().starts_with("plan refused"));
     // A plan the legs refuse as a whole is refused too.
-    let legs = |_: &Pattern| Err(GaitError::Limit("row 3, joint left_knee: too fast".into()));
+    let legs =
+        |_: &Pattern, _: f64| Err(GaitError::Limit("row 3, joint left_knee: too fast".into()));
     assert!(matches!(
         w.on_plan(&p, 0.0, &ok, &legs),
         Verdict::Refused(_)
@@ -316,4 +317,43 @@ fn a_plan_to_the_goal_is_not_walked_to_its_end_when_no_newer_plan_comes() {
     );
     let c = w.counters();
     assert!(c.in_place > 0 && c.stops == 1, "{c:?}");
+}
+
+#[test]
+fn a_long_plans_pattern_is_made_of_what_can_play_and_what_its_preview_sees() {
+    // Of a 30-step plan, one step is walked and the next stops the walk when no newer plan
+    // comes: the pattern holds those and the steps the preview of the stop's touch-down
+    // sees, and the legs are checked to that touch-down. Its samples up to there are those
+    // of the whole plan's pattern.
+    let until = std::cell::Cell::new(f64::NAN);
+    let check = |_: &Pattern, u: f64| -> Result<(), GaitError> {
+        until.set(u);
+        Ok(())
+    };
+    let mut short = walker();
+    let p = plan_from(&short, 0.0, 0, 30, 0);
+    assert_eq!(short.on_plan(&p, 0.0, &ok, &check), Verdict::Taken(1));
+    let (l, r) = standing();
+    let all = WalkerConfig {
+        steps_per_plan: 100,
+        ..WalkerConfig::default()
+    };
+    let mut whole = Walker::new(generator(Kind::Preview), all, 0.0, l, r, 0).unwrap();
+    assert_eq!(whole.on_plan(&p, 0.0, &ok, &any), Verdict::Taken(1));
+    let (a, b) = (short.pattern(), whole.pattern());
+    assert_eq!(b.timeline.steps.len(), 30);
+    let n = a.timeline.steps.len();
+    assert!(n > 2 && n < 12, "{n} steps made");
+    let stop = &a.timeline.steps[1];
+    assert_eq!(stop.footstep.number, 2);
+    assert!((until.get() - stop.land).abs() < 1e-12, "{}", until.get());
+    let end = a.index_at(stop.land);
+    let mut worst: f64 = 0.0;
+    for k in 0..=end {
+        let (x, y) = (a.samples[k].com.com()[0], b.samples[k].com.com()[0]);
+        worst = worst.max((x[0] - y[0]).abs()).max((x[1] - y[1]).abs());
+        assert_eq!(a.samples[k].feet, b.samples[k].feet);
+    }
+    eprintln!("{n} steps made, the COM within {worst:e} m of the whole plan's");
+    assert!(worst < 1e-6, "the COM differs by {worst} m");
 }
