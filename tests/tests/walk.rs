@@ -5,6 +5,7 @@
 //! true pose and reports.
 
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use lcm::Message;
 use stride_lcmtypes::stride::SimReportT;
@@ -157,13 +158,14 @@ fn walk_in_closed_loop(
 
 #[test]
 #[ignore = "multicast: scripts/test runs it in a private network namespace"]
-fn archie_walks_a_metre_to_its_goal_in_closed_loop_and_on_to_a_second_after_standing() {
+fn archie_walks_a_metre_to_its_goal_in_closed_loop_on_to_a_second_and_not_by_itself_after_a_stop() {
     // The ZMP of the measured motion moves with the drives' lag, more on a loaded machine (up
     // to about 7 cm seen): the fall threshold is widened here; what this test guards is the
     // loop (goal, plans at every step, rows, drives, body) reaching the goal without a
     // collision. The second goal guards a walk after a stand: it once started back where the
     // stream of rows had ended, seconds in the past, and the gait stopped it at once (its
-    // rows far from the drives).
+    // rows far from the drives). The third is stopped mid-walk and resumed: the robot once
+    // walked on to it by itself after the resume.
     require_sandbox();
     let _one = ONE_WALK.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
@@ -176,6 +178,9 @@ fn archie_walks_a_metre_to_its_goal_in_closed_loop_and_on_to_a_second_after_stan
     } else {
         (false, String::new())
     };
+    if ok2 {
+        stopped_and_resumed_the_robot_stands(&url, "2.5,0");
+    }
     let (st, out) = launcher.interrupt();
     assert!(ok, "{summary}\n{out}");
     for s in [&summary, &second] {
@@ -190,6 +195,60 @@ fn archie_walks_a_metre_to_its_goal_in_closed_loop_and_on_to_a_second_after_stan
     let err = number_after(&second, "drives' positions): max");
     assert!(err < 0.15, "tracking error {err} rad: {second}");
     assert!(st.success(), "the launcher's shutdown: {out}");
+}
+
+/// Sends `goal`, stops the walk once it is under way and resumes it: the robot stands, and
+/// no request for a plan goes out for 4 s after the resume.
+fn stopped_and_resumed_the_robot_stands(url: &str, goal: &str) {
+    use stride_lcmtypes::stride::{FootstepPlanRequestT, TrajectoryStatusT};
+    let moving = |m: &TrajectoryStatusT| m.state == TrajectoryStatusT::STATE_MOVING;
+    let stride = |args: &[&str]| {
+        let mut c = on_bus("stride", url);
+        c.args(args);
+        let (ok, out) = outcome(c);
+        assert!(ok, "stride {args:?}: {out}");
+    };
+    let waiting = std::thread::spawn({
+        let url = url.to_owned();
+        move || stride_tests::wait_for(&url, "GAIT_STATUS", Duration::from_secs(30), moving)
+    });
+    std::thread::sleep(Duration::from_millis(300));
+    stride(&["goal", goal]);
+    waiting.join().unwrap();
+    stride(&["stop", "test"]);
+    stride_tests::wait_for(
+        url,
+        "GAIT_STATUS",
+        Duration::from_secs(20),
+        |m: &TrajectoryStatusT| m.state == TrajectoryStatusT::STATE_STOPPED,
+    );
+    // Standing: the stand after the stop done.
+    std::thread::sleep(Duration::from_secs(4));
+    let lcm = lcm::Lcm::new(url).unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let _requests = lcm
+        .subscribe(
+            "FOOTSTEP_PLAN_REQUEST",
+            move |_, _: FootstepPlanRequestT| {
+                let _ = tx.send(());
+            },
+        )
+        .unwrap();
+    let (stx, srx) = std::sync::mpsc::channel();
+    let _status = lcm
+        .subscribe("GAIT_STATUS", move |_, m: TrajectoryStatusT| {
+            let _ = stx.send(m.state);
+        })
+        .unwrap();
+    stride(&["resume"]);
+    stride_tests::handle_until(&lcm, Duration::from_secs(4), || false);
+    let states: Vec<i8> = srx.try_iter().collect();
+    assert!(!states.is_empty(), "no gait status after the resume");
+    assert!(
+        !states.contains(&TrajectoryStatusT::STATE_MOVING),
+        "the robot walked on by itself after the resume: {states:?}"
+    );
+    assert_eq!(rx.try_iter().count(), 0, "plans asked for after the resume");
 }
 
 const OPEN: &str = r#"

@@ -688,6 +688,12 @@ impl GaitApp {
                 (GaitCommandT::COMMAND_STOP, Body::Archie { walker, legs, .. }) => {
                     tracing::info!("stop: {}", c.reason);
                     walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
+                    // The walk ends here: a resume stands until a goal is sent (the robot
+                    // never walks off on its own after a stop).
+                    if let Some(p) = self.goal.take() {
+                        tracing::info!("goal ({:.3}, {:.3}) dropped", p.goal.x, p.goal.y);
+                        self.goal_note.clear();
+                    }
                     match legs.joints_until(walker.pattern(), f64::INFINITY) {
                         Ok(j) => self.adopt(j, t),
                         Err(e) => self.fault(node, format!("stopping: {e}")),
@@ -1201,6 +1207,18 @@ impl GaitApp {
 }
 
 impl GaitApp {
+    /// Publishes the status when it changed or is due.
+    fn publish_status(&mut self, node: &Node, now: Instant) -> anyhow::Result<()> {
+        if self.status_changed || self.status_period.due(now) {
+            self.status_period.next(now);
+            self.status_changed = false;
+            self.status.header = self.status_stamper.stamp();
+            node.publisher()
+                .publish(&self.cfg.status_channel, &self.status)?;
+        }
+        Ok(())
+    }
+
     /// Messages taken so far on the subscriptions that tick the gait at once: plans, commands,
     /// stops and goals.
     fn urgent_count(&self) -> u64 {
@@ -1255,6 +1273,8 @@ impl Tick for GaitApp {
             Phase::Ready => self.walk(node, t, now),
             Phase::Fault(_) => {}
         }
+        // A plan taken or refused is said before its first rows go out.
+        self.publish_status(node, now)?;
         // The hexapod's walk is over once its rows are.
         if matches!(self.body, Body::Hexapod { .. })
             && self.status.state == TrajectoryStatusT::STATE_MOVING
@@ -1281,13 +1301,7 @@ impl Tick for GaitApp {
                 }
             }
         }
-        if self.status_changed || self.status_period.due(now) {
-            self.status_period.next(now);
-            self.status_changed = false;
-            self.status.header = self.status_stamper.stamp();
-            node.publisher()
-                .publish(&self.cfg.status_channel, &self.status)?;
-        }
+        self.publish_status(node, now)?;
         // Standing with nothing to do (no goal, every row played), the loop slows to 50 Hz:
         // a command waits at most 20 ms.
         let idle = self.phase == Phase::Ready

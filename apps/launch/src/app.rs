@@ -127,8 +127,8 @@ enum Command {
         #[arg(long, default_value = "HEXAPOD_JOINT_STATE")]
         states: String,
     },
-    /// Stop walking: the gait brings the robot to a stand and takes no plan until `stride
-    /// resume`.
+    /// Stop walking: the gait brings the robot to a stand, drops its goal and takes no plan
+    /// until `stride resume` (after which it stands until it is sent a goal).
     Stop {
         /// Why (for the logs).
         #[arg(default_value = "operator")]
@@ -141,7 +141,8 @@ enum Command {
         #[arg(default_value = "operator")]
         reason: String,
     },
-    /// Let the robot move again after a stop or a system stop.
+    /// Let the robot move again after a stop or a system stop: it stands until it is sent a
+    /// goal (the one it walked to before the stop is dropped).
     Resume,
     /// Order the deputies of a profile to shut down (the same ordered shutdown as Ctrl-C).
     Shutdown {
