@@ -348,10 +348,11 @@ fn every_request_is_answered_superseded_ones_too() {
     );
     let plans = r.plans.lock().unwrap().clone();
     assert_eq!(plans.len(), n as usize, "each answered once");
-    let superseded = plans
-        .iter()
-        .filter(|p| p.status == FootstepPlanT::STATUS_SUPERSEDED)
-        .count();
+    // How many are superseded depends on how fast the planner is against the sender (none
+    // when every search ends before the next request comes): it is not asserted here. That a
+    // newer request supersedes a waiting or running one is shown without timing in
+    // a_long_search_is_cancelled_by_its_requesters_next_request_and_by_shutdown and in the
+    // planner node's unit tests.
     assert!(plans
         .iter()
         .all(|p| [FootstepPlanT::STATUS_OK, FootstepPlanT::STATUS_SUPERSEDED].contains(&p.status)));
@@ -359,10 +360,6 @@ fn every_request_is_answered_superseded_ones_too() {
     assert_eq!(
         plans.iter().find(|p| p.request_id == n).unwrap().status,
         FootstepPlanT::STATUS_OK
-    );
-    assert!(
-        superseded > 0,
-        "1000 requests in 0.5 s and none superseded?"
     );
     let (st, _) = r.node.interrupt();
     assert!(st.success());
