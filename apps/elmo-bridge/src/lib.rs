@@ -36,9 +36,13 @@ pub struct BridgeConfig {
     pub stop_channel: String,
     /// Joint state rate (and SYNC rate), Hz.
     pub state_rate_hz: f64,
-    /// Joint state rate while no motion is queued or playing and every joint is still, Hz
-    /// (the SYNC keeps state_rate_hz: the states stay fresh for the next trajectory's join).
+    /// Joint state rate while no motion is queued or playing and every joint is still, Hz.
     pub idle_state_rate_hz: f64,
+    /// Meanwhile the SYNC (and the bridge's heartbeat with it) goes every this many ms: at
+    /// most half of drive_watchdog_ms, at least a period of state_rate_hz. A trajectory
+    /// brings the full rate back at once (its join is checked against states at most five
+    /// of these old).
+    pub idle_sync_ms: u64,
     /// How far ahead of the drives' play rows are sent, ms: a trajectory replaces what is
     /// queued no sooner than this after it arrives, and a stream's next chunk has to arrive
     /// this long before the queued motion ends, or the joints stop.
@@ -80,6 +84,7 @@ impl Default for BridgeConfig {
             stop_channel: "STRIDE_STOP".into(),
             state_rate_hz: 100.0,
             idle_state_rate_hz: 10.0,
+            idle_sync_ms: 40,
             lookahead_ms: 100,
             max_queue_ms: 10_000,
             drive_watchdog_ms: 100,
@@ -117,6 +122,16 @@ impl BridgeConfig {
             return Err(format!(
                 "idle_state_rate_hz {} outside (0, state_rate_hz]",
                 self.idle_state_rate_hz
+            ));
+        }
+        if (self.idle_sync_ms as f64) < 1000.0 / self.state_rate_hz - 1e-9
+            || 2 * self.idle_sync_ms > self.drive_watchdog_ms
+        {
+            return Err(format!(
+                "idle_sync_ms {} must be at least a period of state_rate_hz ({:.1} ms) and at most half of drive_watchdog_ms ({} ms)",
+                self.idle_sync_ms,
+                1000.0 / self.state_rate_hz,
+                self.drive_watchdog_ms
             ));
         }
         if self.heartbeat_ms == 0 || self.drive_watchdog_ms < 2 * self.heartbeat_ms {
@@ -165,6 +180,7 @@ impl BridgeConfig {
             lookahead: ms(self.lookahead_ms),
             max_queue: ms(self.max_queue_ms),
             sync_period: Duration::from_secs_f64(1.0 / self.state_rate_hz),
+            idle_sync_period: ms(self.idle_sync_ms),
             stop_timeout: ms(self.stop_timeout_ms),
             ..MasterConfig::default()
         })
@@ -544,12 +560,7 @@ impl<B: CanBus> Bridge<B> {
     /// True while no motion is queued or playing and every joint is still (below 0.01 rad/s):
     /// the joint states may go out at the idle rate.
     pub fn still(&self) -> bool {
-        self.master.idle()
-            && self
-                .master
-                .states()
-                .iter()
-                .all(|(_, s)| s.velocity.abs() < 0.01)
+        self.master.resting()
     }
 
     /// The joint states.
@@ -647,6 +658,13 @@ mod tests {
         let mut bad = cfg.clone();
         bad.drive_watchdog_ms = 10;
         assert!(bad.check().is_err());
+        // Resting, the heartbeat goes with the SYNC: at most half of the drives' watchdog.
+        let mut bad = cfg.clone();
+        bad.idle_sync_ms = bad.drive_watchdog_ms / 2 + 1;
+        assert!(bad.check().unwrap_err().contains("idle_sync_ms"));
+        let mut bad = cfg.clone();
+        bad.idle_sync_ms = 5;
+        assert!(bad.check().unwrap_err().contains("idle_sync_ms"));
     }
 
     #[test]

@@ -129,6 +129,10 @@ pub struct MasterConfig {
     pub max_queue: Duration,
     /// Time between SYNCs (and so between joint states).
     pub sync_period: Duration,
+    /// Time between SYNCs (and the heartbeats that go with them) while the drives rest:
+    /// nothing queued or playing and every joint still. A trajectory brings `sync_period`
+    /// back at once. At most half of `drive_watchdog`.
+    pub idle_sync_period: Duration,
     /// On shutdown, the longest to wait for the joints to stand still after the quick stop
     /// before the torque goes off.
     pub stop_timeout: Duration,
@@ -146,6 +150,7 @@ impl Default for MasterConfig {
             lookahead: Duration::from_millis(100),
             max_queue: Duration::from_secs(10),
             sync_period: Duration::from_millis(10),
+            idle_sync_period: Duration::from_millis(10),
             stop_timeout: Duration::from_secs(2),
         }
     }

@@ -35,7 +35,7 @@ pub mod units;
 pub use bring_up::Shutdown;
 pub use config::{JointConfig, MasterConfig, Motion, PT_POINTS};
 pub use error::MasterError;
-pub use master::{Counters, Event, JointState, Master, Status, END_REPORT_WAIT};
+pub use master::{Counters, Event, JointState, Master, Status, END_REPORT_WAIT, STILL_SPEED};
 pub use stream::Accepted;
 pub use trajectory::{Start, Trajectory};
 

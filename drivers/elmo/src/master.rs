@@ -173,10 +173,14 @@ pub(crate) struct Track {
     pub heartbeat: HeartbeatProducer,
     pub motion: Motion,
     pub drive_heartbeat: Duration,
+    /// The SYNC's period now (longer while the drives rest).
     pub sync_period: Duration,
     /// When the last SYNC went out: the states read before the next one answer it.
     pub last_sync: Option<Instant>,
 }
+
+/// A joint slower than this, rad/s, stands still (see [`Master::resting`]).
+pub const STILL_SPEED: f64 = 0.01;
 
 /// The set-point RPDO: RPDO3 carrying object 0x2001 (a PVT row per frame), 0x2002 (two PT
 /// points per frame), or 0x60C1:1 (an interpolated position set-point per frame).
@@ -587,6 +591,20 @@ impl<B: CanBus> Master<B> {
                 });
             }
         }
+        // Resting, the heartbeat goes with the SYNC: the drives' watchdog must see two.
+        if cfg.idle_sync_period < cfg.sync_period || 2 * cfg.idle_sync_period > cfg.drive_watchdog {
+            return Err(MasterError::Setup {
+                joint: "master".into(),
+                node: cfg.master_node,
+                what: format!(
+                    "an idle SYNC period of {} ms is outside [the SYNC period, {} ms; half of \
+                     the drives' watchdog, {} ms]",
+                    cfg.idle_sync_period.as_millis(),
+                    cfg.sync_period.as_millis(),
+                    cfg.drive_watchdog.as_millis() / 2
+                ),
+            });
+        }
         // Plan time 0 and the wall clock then, read with nothing between them (a reading the
         // scheduler interrupted is taken again).
         let (now, wall_epoch) = (0..10)
@@ -712,6 +730,16 @@ impl<B: CanBus> Master<B> {
             .axes
             .iter()
             .all(|a| a.plan.is_empty() && !a.playing)
+    }
+
+    /// Nothing queued or playing, and every joint still (under [`STILL_SPEED`]).
+    pub fn resting(&self) -> bool {
+        self.idle()
+            && self
+                .track
+                .axes
+                .iter()
+                .all(|a| a.state.velocity.abs() < STILL_SPEED)
     }
 
     fn host_error(&self, a: usize, e: HostError, what: impl FnOnce() -> String) -> MasterError {

@@ -51,6 +51,10 @@ impl<B: CanBus> Master<B> {
     /// trajectory; nothing is clipped. When the drives were stopped (a quick stop, a fault),
     /// a valid trajectory enables them again first.
     pub fn load(&mut self, t: &Trajectory, now: Instant) -> Result<Accepted, MasterError> {
+        // Resting, the states came less often: the full rate from now on.
+        if self.resting() {
+            self.next_sync = self.next_sync.min(now);
+        }
         let r = self.try_load(t, now);
         match &r {
             Ok(a) => {
@@ -207,9 +211,11 @@ impl<B: CanBus> Master<B> {
                     let (pm, vm) = match end.filter(|_| plan.ended()) {
                         Some(k) => (k.p, 0.0),
                         None => {
-                            let fresh = ax.state.updated.is_some_and(|u| {
-                                now.saturating_duration_since(u) <= self.cfg.sync_period * 5
-                            });
+                            let period = self.cfg.sync_period.max(self.cfg.idle_sync_period);
+                            let fresh = ax
+                                .state
+                                .updated
+                                .is_some_and(|u| now.saturating_duration_since(u) <= period * 5);
                             if !fresh {
                                 return Err(bad(format!(
                                     "{name}: no recent state from its drive to start from"
@@ -344,13 +350,20 @@ impl<B: CanBus> Master<B> {
         // What arrived first: the states in it answer the SYNC already sent.
         self.take_in(now)?;
         let sync = now >= self.next_sync;
+        // Resting, the SYNC goes less often (`idle_sync_period`).
+        let period = if self.resting() {
+            self.cfg.idle_sync_period
+        } else {
+            self.cfg.sync_period
+        };
         // The heartbeat goes out with the SYNC (one batch where the bus is carried over LCM),
         // or on its own once it is late by a SYNC period.
-        if sync || self.track.heartbeat.overdue(now, self.cfg.sync_period) {
+        if sync || self.track.heartbeat.overdue(now, period) {
             let _ = self.track.heartbeat.poll(&mut self.bus, now);
         }
         if sync {
-            self.next_sync = (self.next_sync + self.cfg.sync_period).max(now);
+            self.next_sync = (self.next_sync + period).max(now);
+            self.track.sync_period = period;
             match self
                 .bus
                 .send(&sync::encode(None), now + self.cfg.sdo_timeout)

@@ -915,3 +915,51 @@ fn a_motion_after_another_waits_for_the_drives_report_of_its_end() {
     }
     r.finish();
 }
+
+#[test]
+fn a_resting_master_syncs_less_often_and_its_drives_keep_their_watchdog() {
+    let mut r = Rig::with(
+        3,
+        MasterConfig {
+            idle_sync_period: Duration::from_millis(40),
+            ..Default::default()
+        },
+    );
+    // Settled: nothing queued, every joint still.
+    r.run(Duration::from_millis(200));
+    assert!(r.m.resting());
+    let mut watch = r.bus.node();
+    r.run(Duration::from_secs(1));
+    let (mut syncs, mut heartbeats, mut watchdog) = (0, 0, 0);
+    while let Ok(Some(f)) = watch.try_recv() {
+        match f.raw_id() {
+            0x080 => syncs += 1,
+            0x77F => heartbeats += 1,
+            _ => {}
+        }
+        if Emcy::decode(&f).is_ok_and(|e| e.code == Emcy::HEARTBEAT_ERROR) {
+            watchdog += 1;
+        }
+    }
+    // A SYNC every 40 ms (at most 26 a second, against 100 at the full rate), the master's
+    // heartbeat with it, and no drive missed it (their watchdog is 100 ms).
+    assert!((1..=26).contains(&syncs), "{syncs} SYNCs in 1 s at rest");
+    assert!(
+        heartbeats >= syncs,
+        "{heartbeats} heartbeats, {syncs} SYNCs"
+    );
+    assert_eq!(watchdog, 0);
+    assert!(r.m.take_events().is_empty());
+    // A trajectory brings the full rate back at once and plays from the rested states.
+    r.m.load(
+        &minjerk(&["j1", "j2", "j3"], &[0.0; 3], &[0.4; 3], 0.5),
+        Instant::now(),
+    )
+    .unwrap();
+    assert!(!r.m.resting());
+    r.play();
+    assert!(r.positions().iter().all(|p| (p - 0.4).abs() < 1e-3));
+    let events = r.m.take_events();
+    assert!(events.is_empty(), "{events:?}");
+    r.finish();
+}
