@@ -10,6 +10,7 @@ use anyhow::Context;
 use regex::Regex;
 use stride_lcmtypes::stride::NodeStatusT;
 use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Tick};
+use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
 use crate::{anchored, channel_of, key_of, BridgeConfig, Counters, Echoes, Out, Outgoing};
@@ -155,7 +156,7 @@ impl Bridge {
             .lcm()
             .subscribe_raw(".*", move |info, data| {
                 let now = Instant::now();
-                let decision = {
+                let (decision, drop) = {
                     let mut s = lock(&st);
                     if s.echoes.is_echo(info.channel, data, now) {
                         s.counters.echoes += 1;
@@ -167,7 +168,7 @@ impl Bridge {
                         Out::BadName => s.counters.bad_names += 1,
                         _ => {}
                     }
-                    d
+                    (d, s.outgoing.drops_when_congested(info.channel))
                 };
                 if decision != Out::Send {
                     return;
@@ -178,7 +179,21 @@ impl Bridge {
                         let Some(key) = key_of(&prefix, info.channel) else {
                             return;
                         };
-                        match z.declare_publisher(key).express(true).wait() {
+                        // Batched (a burst shares the link's frames) and, unless the
+                        // rule says drop, waiting for room when the link is congested:
+                        // Zenoh's default drops a message that finds its queue (two
+                        // frames) full for 1 ms, which a burst of small messages sent one
+                        // frame each did on a busy machine.
+                        let congestion = if drop {
+                            CongestionControl::Drop
+                        } else {
+                            CongestionControl::Block
+                        };
+                        match z
+                            .declare_publisher(key)
+                            .congestion_control(congestion)
+                            .wait()
+                        {
                             Ok(p) => publishers.entry(info.channel.to_owned()).or_insert(p),
                             Err(e) => {
                                 tracing::warn!("declaring {}: {e}", info.channel);

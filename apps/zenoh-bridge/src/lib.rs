@@ -89,6 +89,12 @@ pub struct ChannelRule {
     /// dropped and counted. None: all.
     #[serde(default)]
     pub max_rate_hz: Option<f64>,
+    /// When the link takes no more for a moment (Zenoh's queue full), drop these channels'
+    /// messages rather than wait for room: for streams whose newest message replaces the
+    /// last (a pose, odometry). Otherwise (the default) the bridge waits, and what follows
+    /// on the bus waits in its queue: a burst of plans or commands is never thinned.
+    #[serde(default)]
+    pub drop_when_congested: bool,
 }
 
 /// An anchored regular expression, or a one-line error naming `what`.
@@ -182,7 +188,7 @@ pub enum Out {
 /// The outgoing side: the rules, each channel's last send, and the echoes to expect.
 #[derive(Debug)]
 pub struct Outgoing {
-    rules: Vec<(Regex, Option<Duration>)>,
+    rules: Vec<(Regex, Option<Duration>, bool)>,
     last: HashMap<String, Instant>,
 }
 
@@ -195,6 +201,7 @@ impl Outgoing {
                 Ok((
                     anchored(&r.pattern, "out pattern")?,
                     r.max_rate_hz.map(|hz| Duration::from_secs_f64(1.0 / hz)),
+                    r.drop_when_congested,
                 ))
             })
             .collect::<Result<_, String>>()?;
@@ -204,9 +211,19 @@ impl Outgoing {
         })
     }
 
+    fn rule(&self, channel: &str) -> Option<&(Regex, Option<Duration>, bool)> {
+        self.rules.iter().find(|(re, ..)| re.is_match(channel))
+    }
+
+    /// Whether `channel`'s messages are dropped rather than held when the link is congested
+    /// (its rule's `drop_when_congested`).
+    pub fn drops_when_congested(&self, channel: &str) -> bool {
+        self.rule(channel).is_some_and(|r| r.2)
+    }
+
     /// Whether a message on `channel` at `now` goes out (an echo is told apart before).
     pub fn decide(&mut self, channel: &str, now: Instant) -> Out {
-        let Some((_, every)) = self.rules.iter().find(|(re, _)| re.is_match(channel)) else {
+        let Some((_, every, _)) = self.rule(channel) else {
             return Out::Stays;
         };
         if !is_key(channel) {
@@ -413,10 +430,12 @@ mod tests {
             ChannelRule {
                 pattern: "ELEVATION_MAP".into(),
                 max_rate_hz: Some(2.0),
+                drop_when_congested: true,
             },
             ChannelRule {
                 pattern: "FOOTSTEP_.*|STEP_COUNTER".into(),
                 max_rate_hz: None,
+                drop_when_congested: false,
             },
         ])
         .unwrap();
@@ -431,9 +450,14 @@ mod tests {
             .filter(|i| o.decide("ELEVATION_MAP", t0 + Duration::from_millis(100 * i)) == Out::Send)
             .count();
         assert_eq!(sent, 2);
+        // Only the rule that says so drops on a congested link.
+        assert!(o.drops_when_congested("ELEVATION_MAP"));
+        assert!(!o.drops_when_congested("FOOTSTEP_PLAN"));
+        assert!(!o.drops_when_congested("JOINT_STATE_LEFT_LEG"));
         let mut all = Outgoing::new(&[ChannelRule {
             pattern: ".*".into(),
             max_rate_hz: None,
+            drop_when_congested: false,
         }])
         .unwrap();
         assert_eq!(all.decide("BAD*NAME", t0), Out::BadName);
