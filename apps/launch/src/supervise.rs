@@ -69,8 +69,8 @@ struct Proc {
     held: bool,
     /// While stopping: when SIGINT went out, and whether SIGTERM and SIGKILL did.
     stopping: Option<(Instant, bool, bool)>,
-    /// CPU time (ticks) at the last sample, and when.
-    cpu_sample: Option<(u64, Instant)>,
+    /// CPU time (s) at the last sample, and when.
+    cpu_sample: Option<(CpuTime, Instant)>,
     cpu: f64,
     memory: i64,
     log: Option<std::fs::File>,
@@ -99,15 +99,64 @@ fn sysconf(name: libc::c_int, default: i64) -> i64 {
     }
 }
 
-/// A process's CPU time (user + system, ticks) and resident pages, from /proc.
-fn proc_usage(pid: u32) -> Option<(u64, i64)> {
+/// A process's CPU time so far, as /proc counts it.
+#[derive(Debug, Clone, PartialEq)]
+struct CpuTime {
+    /// User + system time, s, in whole clock ticks (10 ms: a 1 s sample of a light app
+    /// would read 0 % or 1 %); it keeps the time of threads that have ended.
+    ticks: f64,
+    /// The scheduler's own count, s, to the nanosecond, summed over the threads alive now
+    /// (/proc/PID/task/*/schedstat), with their ids; None where the kernel keeps none.
+    threads: Option<(f64, Vec<u32>)>,
+}
+
+impl CpuTime {
+    /// The share of a core used between `earlier` and this, over `secs`: from the
+    /// scheduler's count when every thread of then still runs, else from the ticks.
+    fn share_since(&self, earlier: &CpuTime, secs: f64) -> f64 {
+        let spent = match (&self.threads, &earlier.threads) {
+            (Some((now, alive)), Some((then, before)))
+                if before.iter().all(|t| alive.binary_search(t).is_ok()) =>
+            {
+                now - then
+            }
+            _ => self.ticks - earlier.ticks,
+        };
+        spent.max(0.0) / secs
+    }
+}
+
+/// A process's CPU time and resident pages, from /proc.
+fn proc_usage(pid: u32, ticks_per_s: f64) -> Option<(CpuTime, i64)> {
     let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
     // The command may hold spaces: the fields after its closing parenthesis.
     let rest = &stat[stat.rfind(')')? + 2..];
     let f: Vec<&str> = rest.split_whitespace().collect();
     let (utime, stime): (u64, u64) = (f.get(11)?.parse().ok()?, f.get(12)?.parse().ok()?);
     let rss: i64 = f.get(21)?.parse().ok()?;
-    Some((utime + stime, rss))
+    let time = CpuTime {
+        ticks: (utime + stime) as f64 / ticks_per_s,
+        threads: thread_times(pid),
+    };
+    Some((time, rss))
+}
+
+/// The time the live threads of `pid` have run, s, and their ids (sorted), from their
+/// schedstat.
+fn thread_times(pid: u32) -> Option<(f64, Vec<u32>)> {
+    let mut ns = 0u64;
+    let mut ids = Vec::new();
+    for task in std::fs::read_dir(format!("/proc/{pid}/task")).ok()? {
+        let task = task.ok()?;
+        // A thread that ended since the listing is left out (the ids then differ).
+        let Ok(text) = std::fs::read_to_string(task.path().join("schedstat")) else {
+            continue;
+        };
+        ns += text.split_whitespace().next()?.parse::<u64>().ok()?;
+        ids.push(task.file_name().to_str()?.parse().ok()?);
+    }
+    ids.sort_unstable();
+    Some((ns as f64 / 1e9, ids))
 }
 
 /// Sends `sig` to the process group `pid` leads.
@@ -500,16 +549,17 @@ impl Supervisor {
                 p.memory = 0;
                 continue;
             };
-            if let Some((ticks, rss)) = proc_usage(c.id()) {
-                if let Some((t0, at)) = p.cpu_sample {
-                    let dt = now.saturating_duration_since(at).as_secs_f64();
-                    if dt >= 0.5 {
-                        p.cpu = (ticks.saturating_sub(t0)) as f64 / tps / dt;
-                        p.cpu_sample = Some((ticks, now));
-                    }
-                } else {
-                    p.cpu_sample = Some((ticks, now));
+            // /proc is read once a second at most (the deputy ticks at 20 Hz).
+            let last = p.cpu_sample.as_ref().map(|(_, at)| *at);
+            let dt = last.map(|at| now.saturating_duration_since(at).as_secs_f64());
+            if dt.is_some_and(|dt| dt < 1.0) {
+                continue;
+            }
+            if let Some((time, rss)) = proc_usage(c.id(), tps) {
+                if let (Some((t0, _)), Some(dt)) = (&p.cpu_sample, dt) {
+                    p.cpu = time.share_since(t0, dt);
                 }
+                p.cpu_sample = Some((time, now));
                 p.memory = rss * page;
             }
         }
@@ -684,6 +734,33 @@ impl Drop for Supervisor {
 mod tests {
     use super::*;
     use crate::profile::{Profile, ProfileFile};
+
+    #[test]
+    fn an_apps_cpu_share_is_the_schedulers_count_unless_a_thread_ended() {
+        let at = |ticks: f64, ns: Option<(f64, &[u32])>| CpuTime {
+            ticks,
+            threads: ns.map(|(s, ids)| (s, ids.to_vec())),
+        };
+        // Every thread of then still runs: to the nanosecond, not in 10 ms ticks.
+        let a = at(1.00, Some((1.000_000, &[10, 11])));
+        let b = at(1.00, Some((1.003_500, &[10, 11, 12])));
+        assert!((b.share_since(&a, 1.0) - 0.0035).abs() < 1e-9);
+        // Thread 11 ended (its schedstat with it): the ticks, which keep its time.
+        let c = at(1.02, Some((1.001_000, &[10, 12])));
+        assert!((c.share_since(&b, 2.0) - 0.01).abs() < 1e-9);
+        // No schedstat: the ticks. Never a negative share.
+        assert!((at(1.05, None).share_since(&at(1.0, None), 1.0) - 0.05).abs() < 1e-9);
+        assert_eq!(at(1.0, None).share_since(&at(1.1, None), 1.0), 0.0);
+        // What this machine's /proc gives: this process, this thread among its own.
+        let (t, rss) = proc_usage(std::process::id(), 100.0).unwrap();
+        let (secs, ids) = t.threads.expect("schedstat");
+        // SAFETY: gettid has no preconditions.
+        let me = unsafe { libc::gettid() } as u32;
+        assert!(
+            secs > 0.0 && rss > 0 && ids.binary_search(&me).is_ok(),
+            "{ids:?}"
+        );
+    }
 
     fn profile(apps: &str) -> Profile {
         let text = format!(

@@ -312,6 +312,45 @@ impl Period {
     }
 }
 
+/// A stream's pace: a message every period while there is news, every idle period while
+/// nothing changes (a body at rest, a still joint). News brings the full rate back at once;
+/// a missed message is skipped, not caught up in a burst.
+#[derive(Debug, Clone, Copy)]
+pub struct Paced {
+    period: Duration,
+    idle: Duration,
+    last: Option<Instant>,
+}
+
+impl Paced {
+    /// `rate_hz` messages a second, `idle_hz` while idle (at most `rate_hz`).
+    pub fn hz(rate_hz: f64, idle_hz: f64) -> Paced {
+        Paced {
+            period: Duration::from_secs_f64(1.0 / rate_hz),
+            idle: Duration::from_secs_f64(1.0 / idle_hz.min(rate_hz)),
+            last: None,
+        }
+    }
+
+    /// True when a message is due at `now` (the first always is), at the idle pace when
+    /// `idle`; a true answer counts the message as sent.
+    pub fn take(&mut self, now: Instant, idle: bool) -> bool {
+        let every = if idle { self.idle } else { self.period };
+        let due = match self.last {
+            None => true,
+            Some(at) => now >= at + every,
+        };
+        if due {
+            // On the period's grid while on time, from now after a gap.
+            self.last = Some(match self.last {
+                Some(at) if now < at + every + every => at + every,
+                _ => now,
+            });
+        }
+        due
+    }
+}
+
 impl Node {
     /// Runs `app` until shutdown (a signal, [`Node::exit_with`], or stdout closed under a
     /// pipe), handling messages between its ticks; then stops it. Marks the node running
@@ -446,6 +485,32 @@ mod tests {
             .context("printing");
         assert!(is_broken_pipe(&e));
         assert!(!is_broken_pipe(&anyhow::anyhow!("other")));
+    }
+
+    #[test]
+    fn a_paced_stream_slows_while_idle_and_speeds_up_at_once() {
+        let t0 = Instant::now();
+        let ms = Duration::from_millis;
+        let mut p = Paced::hz(50.0, 10.0);
+        let sent = |p: &mut Paced, from: u64, to: u64, idle: bool| {
+            (from..to).filter(|&i| p.take(t0 + ms(i), idle)).count()
+        };
+        // 50 Hz for a second, on the grid.
+        assert_eq!(sent(&mut p, 0, 1000, false), 50);
+        // Idle: 10 Hz.
+        assert_eq!(sent(&mut p, 1000, 2000, true), 10);
+        // News: the next message a full period after the last, not an idle one.
+        let mut p = Paced::hz(50.0, 10.0);
+        assert!(p.take(t0, true));
+        assert!(!p.take(t0 + ms(50), true));
+        assert!(p.take(t0 + ms(100), true));
+        assert!(p.take(t0 + ms(120), false));
+        assert!(!p.take(t0 + ms(130), false));
+        assert!(p.take(t0 + ms(140), false));
+        // A long gap sends one, then keeps the period from it (no burst).
+        assert!(p.take(t0 + ms(10_000), false));
+        assert!(!p.take(t0 + ms(10_019), false));
+        assert!(p.take(t0 + ms(10_020), false));
     }
 
     #[test]

@@ -18,7 +18,7 @@ mod throttle;
 
 pub use app::{
     app_config, check_log_filter, is_broken_pipe, main, stdout_closed, tool, AppConfig, ConfigUse,
-    Launch, NoConfig, NodeCli, Period, Tick,
+    Launch, NoConfig, NodeCli, Paced, Period, Tick,
 };
 pub use config::load_config;
 pub use stamp::Stamper;

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use stride_lcmtypes::stride::{JointStateT, NodeStatusT};
-use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
+use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Paced, Period, Stamper, Tick};
 use stride_world::scene::Scene;
 
 use crate::{Robot, Sim, SimConfig};
@@ -66,10 +66,10 @@ pub struct SimApp {
     /// Which channels brought a measurement since the body last moved.
     fresh: Vec<bool>,
     period: Period,
-    odometry: Period,
-    imu: Period,
+    odometry: Paced,
+    imu: Paced,
     perception: Period,
-    report: Period,
+    report: Paced,
     stamps: [Stamper; 6],
     ready: bool,
 }
@@ -105,10 +105,10 @@ impl SimApp {
         let fresh = vec![false; joints.len()];
         Ok(SimApp {
             period: Period::hz(cfg.rate_hz),
-            odometry: Period::hz(cfg.odometry.rate_hz),
-            imu: Period::hz(cfg.imu.rate_hz),
+            odometry: Paced::hz(cfg.odometry.rate_hz, cfg.idle_rate_hz),
+            imu: Paced::hz(cfg.imu.rate_hz, cfg.idle_rate_hz),
             perception: Period::hz(cfg.perception.rate_hz),
-            report: Period::hz(cfg.report_rate_hz),
+            report: Paced::hz(cfg.report_rate_hz, cfg.idle_rate_hz),
             scene: scene.name.clone(),
             sim: Sim::new(cfg.clone(), scene, robot)?,
             cfg,
@@ -182,14 +182,14 @@ impl Tick for SimApp {
                 p.publish(&cfg.pose_channel, &m)?;
             }
         }
-        if !cfg.odometry.channel.is_empty() && self.odometry.due(now) {
-            self.odometry.next(now);
+        // At rest, the sensors and the report at the idle rate.
+        let rest = self.sim.resting(self.last_step);
+        if !cfg.odometry.channel.is_empty() && self.odometry.take(now, rest) {
             if let Some(m) = self.sim.odometry_msg(self.stamps[1].stamp()) {
                 p.publish(&cfg.odometry.channel, &m)?;
             }
         }
-        if !cfg.imu.channel.is_empty() && self.imu.due(now) {
-            self.imu.next(now);
+        if !cfg.imu.channel.is_empty() && self.imu.take(now, rest) {
             if let Some(m) = self.sim.imu_msg(self.stamps[2].stamp()) {
                 p.publish(&cfg.imu.channel, &m)?;
             }
@@ -207,8 +207,7 @@ impl Tick for SimApp {
                 p.publish(&cfg.perception.map_channel, &m)?;
             }
         }
-        if self.sim.has_events() || self.report.due(now) {
-            self.report.next(now);
+        if self.report.take(now, rest) || self.sim.has_events() {
             let m = self.sim.report_msg(self.stamps[5].stamp(), &self.scene);
             p.publish(&cfg.report_channel, &m)?;
         }

@@ -51,6 +51,11 @@ pub struct SimConfig {
     pub rate_hz: f64,
     /// How often the report goes out, Hz (and at once when something begins).
     pub report_rate_hz: f64,
+    /// While the body rests (no joint has moved for [`REST_AFTER`] s), the odometry, the IMU
+    /// and the report go out at most this often, Hz; the first motion brings their rates
+    /// back at once. Standing robots then cost the bus little.
+    #[serde(default = "idle_rate_hz")]
+    pub idle_rate_hz: f64,
     /// Where the robot starts (x, y, heading); absent: the scene's start.
     pub start: Option<[f64; 3]>,
     /// The fake devices' true joint positions (stride.joint_state_t, sim-only channels).
@@ -173,6 +178,15 @@ pub struct Appear {
     pub size: [f64; 3],
 }
 
+fn idle_rate_hz() -> f64 {
+    10.0
+}
+
+/// A body whose joints have not moved (by more than [`STILL`] rad) for this long, s, rests.
+pub const REST_AFTER: f64 = 0.2;
+/// The largest change of a joint's true position, rad, that is no motion.
+pub const STILL: f64 = 1e-6;
+
 impl SimConfig {
     /// Checks rates, noises and channels.
     pub fn check(&self) -> Result<(), String> {
@@ -183,6 +197,9 @@ impl SimConfig {
         if !rate(self.odometry.rate_hz) || !rate(self.imu.rate_hz) || !rate(self.perception.rate_hz)
         {
             return Err("the odometry's, IMU's and perception's rates must be in (0, 1000]".into());
+        }
+        if !rate(self.idle_rate_hz) {
+            return Err("idle_rate_hz must be in (0, 1000]".into());
         }
         let sigma = |s: f64| s.is_finite() && s >= 0.0;
         let n = &self.perception.noise;
@@ -385,6 +402,9 @@ pub struct Sim {
     min_margin: f64,
     min_clearance: f64,
     appeared: usize,
+    /// The joints at the last step, and when (s) one of them last moved.
+    last_q: Vec<f64>,
+    moved_at: f64,
 }
 
 /// An event of Archie's body, in words.
@@ -478,7 +498,15 @@ impl Sim {
             min_margin: f64::NAN,
             min_clearance: f64::INFINITY,
             appeared: 0,
+            last_q: Vec::new(),
+            moved_at: f64::NEG_INFINITY,
         })
+    }
+
+    /// True when no joint has moved for [`REST_AFTER`] s before the last step at `t` (s):
+    /// the body rests (false until every joint is known).
+    pub fn resting(&self, t: f64) -> bool {
+        !self.last_q.is_empty() && t - self.moved_at >= REST_AFTER
     }
 
     /// True once every joint was measured and the body stands in the world.
@@ -559,6 +587,14 @@ impl Sim {
         let Some(q) = self.joints() else {
             return Vec::new();
         };
+        let moved = self.last_q.len() != q.len()
+            || q.iter()
+                .zip(&self.last_q)
+                .any(|(a, b)| (a - b).abs() > STILL);
+        if moved {
+            self.moved_at = t;
+            self.last_q.clone_from(&q);
+        }
         let (mut words, touchdowns) = match &mut self.model {
             Model::Archie { robot, body } => {
                 let q: [Q; 2] = [
@@ -826,5 +862,56 @@ impl Sim {
     /// True when something began since the last report.
     pub fn has_events(&self) -> bool {
         !self.events.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn archie() -> Sim {
+        let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../config"));
+        let file = dir.join("sim-archie.toml");
+        let cfg: SimConfig = toml::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+        cfg.check().unwrap();
+        let scene = Scene::load(&cfg.relative(Some(&file), cfg.scene.as_ref().unwrap())).unwrap();
+        let robot = Robot::load(cfg.robot, &cfg.relative(Some(&file), &cfg.robot_file)).unwrap();
+        Sim::new(cfg, scene, robot).unwrap()
+    }
+
+    fn joints(sim: &Sim, knee: f64) -> JointStateT {
+        let n = sim.names.len();
+        JointStateT {
+            num_joints: n as i32,
+            names: sim.names.clone(),
+            positions: sim
+                .names
+                .iter()
+                .map(|j| if j.contains("knee") { knee } else { 0.0 })
+                .collect(),
+            velocities: vec![0.0; n],
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn the_body_rests_once_no_joint_has_moved_for_a_while() {
+        let mut sim = archie();
+        assert!(!sim.resting(0.0), "nothing measured yet");
+        let still = joints(&sim, 0.3);
+        let mut t = 0.0;
+        while t < REST_AFTER - 0.05 {
+            sim.take_joints(&still);
+            sim.step(t);
+            assert!(!sim.resting(t), "{t}");
+            t += 0.01;
+        }
+        sim.take_joints(&still);
+        sim.step(REST_AFTER);
+        assert!(sim.resting(REST_AFTER));
+        // A joint moves: no longer at rest, at once.
+        sim.take_joints(&joints(&sim, 0.3 + 1e-4));
+        sim.step(REST_AFTER + 0.01);
+        assert!(!sim.resting(REST_AFTER + 0.01));
     }
 }

@@ -797,7 +797,8 @@ impl Lcm {
     }
 
     /// Waits on this instance and its local bus together, then dispatches one message from
-    /// each that has one.
+    /// each that has one. A bus without a subscription is not waited on: asking liblcm for its
+    /// descriptor would make it receive (and wake for) all of that bus's traffic, for nothing.
     fn handle_both(&self, local: &Lcm, timeout: Option<Duration>) -> Result<bool> {
         let buses = [self, local];
         let mut polls = [libc::pollfd {
@@ -806,6 +807,9 @@ impl Lcm {
             revents: 0,
         }; 2];
         for (p, bus) in polls.iter_mut().zip(buses) {
+            if lock(&bus.registry).subs.is_empty() {
+                continue;
+            }
             p.fd = bus.fileno();
             if p.fd < 0 {
                 return Err(Error::NoDescriptor {
