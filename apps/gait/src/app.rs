@@ -23,8 +23,8 @@ use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
 
 use crate::{
     at_goal, command_msg, counter_msg, feet_after, goal_of, min_jerk, odometry_pelvis, pelvis_at,
-    plan_of, request_msg, trajectory_msg, Anchor, BridgeWatch, GaitConfig, Goal, GoalConfig, Robot,
-    ROW_PERIOD,
+    plan_of, request_msg, trajectory_msg, Anchor, Asking, BridgeWatch, GaitConfig, Goal,
+    GoalConfig, Robot, ROW_PERIOD,
 };
 
 /// The walking controller.
@@ -290,6 +290,11 @@ pub struct GaitApp {
     goal_note: String,
     request_stamper: Stamper,
     requests: i64,
+    /// A plan came for a step already under way at its switch (the planner's replan when the
+    /// world changed comes at any time of a step): ask at once for the step that will be.
+    ask_again: bool,
+    /// The step the last plan taken was asked for.
+    taken_echo: Option<i64>,
     imu: Option<(lcm::Subscription, Receiver<ImuT>)>,
     attitude: Option<[f64; 2]>,
     /// The pelvis's measured pose, and the gait's frame in the world it corrects.
@@ -486,6 +491,8 @@ impl GaitApp {
             goal_note: String::new(),
             request_stamper: Stamper::new("world"),
             requests: 0,
+            ask_again: false,
+            taken_echo: None,
             imu,
             attitude: None,
             odometry,
@@ -927,6 +934,8 @@ impl GaitApp {
         let mut adopt: Option<Joints> = None;
         let mut refusals = Vec::new();
         let mut taken = 0;
+        let mut late = false;
+        let mut taken_echo = None;
         while let Ok(msg) = plans.try_recv() {
             let plan = match plan_of(&msg) {
                 // The world's footsteps in the gait's frame.
@@ -951,6 +960,7 @@ impl GaitApp {
                     tracing::debug!("plan for step {} taken: step {first} next", plan.echo);
                     adopt = cache.borrow_mut().take();
                     taken += 1;
+                    taken_echo = Some(plan.echo);
                 }
                 Verdict::Refused(why) => {
                     refusals.push(why);
@@ -959,6 +969,7 @@ impl GaitApp {
                 }
                 Verdict::Late { echo, now } => {
                     tracing::debug!("plan for step {echo} came during step {now}: dropped");
+                    late |= echo < now;
                 }
                 Verdict::Stopped => {
                     tracing::debug!("plan ignored: stopped");
@@ -983,6 +994,8 @@ impl GaitApp {
         }
         let standing = walker.standing(t);
         let stopped = walker.is_stopped();
+        self.ask_again |= late;
+        self.taken_echo = taken_echo.or(self.taken_echo);
         for why in refusals {
             self.refused(why);
         }
@@ -1066,6 +1079,8 @@ impl GaitApp {
                 None => self.refused("a goal that is not made of finite numbers".into()),
             }
         }
+        let stream_end = self.stream_end(t);
+        let ask_again = std::mem::take(&mut self.ask_again);
         let (Body::Archie { walker, .. }, Some(cfg)) = (&self.body, &self.cfg.goal) else {
             return Ok(());
         };
@@ -1075,8 +1090,18 @@ impl GaitApp {
         if walker.is_stopped() || self.phase != Phase::Ready {
             return Ok(());
         }
-        let counter = walker.counter(t);
-        let (feet, next) = feet_after(&walker.pattern().timeline, counter.number);
+        let switch = self.cfg.walker.switch_ahead;
+        let (step, due) = Asking {
+            now: walker.counter(t).number,
+            at_switch: walker
+                .counter(on_grid(walker, t, switch, stream_end) + switch)
+                .number,
+            asked: p.step.map(|s| (s, p.sent)),
+            taken: self.taken_echo,
+            late: ask_again,
+        }
+        .next(t, cfg.resend);
+        let (feet, next) = feet_after(&walker.pattern().timeline, step);
         // Where they stand in the world.
         let feet = feet.map(|f| self.anchor.to_world(f));
         if at_goal(&feet, &p.goal, cfg) {
@@ -1092,14 +1117,14 @@ impl GaitApp {
             self.goal = None;
             return Ok(());
         }
-        if p.step != Some(counter.number) || t - p.sent >= cfg.resend {
-            p.step = Some(counter.number);
+        if due {
+            p.step = Some(step);
             p.sent = t;
             self.requests += 1;
             let m = request_msg(
                 self.request_stamper.stamp(),
                 self.requests,
-                counter.number,
+                step,
                 feet,
                 next,
                 &p.goal,

@@ -544,6 +544,62 @@ mod tests {
     use stride_lcmtypes::stride::FootstepT;
 
     #[test]
+    fn a_plan_too_late_for_its_step_makes_the_gait_ask_at_once_for_the_step_at_the_switch() {
+        let resend = 1.0;
+        // A step begins: asked for it.
+        let a = Asking {
+            now: 5,
+            at_switch: 5,
+            asked: Some((4, 0.0)),
+            taken: Some(4),
+            late: false,
+        };
+        assert_eq!(a.next(0.1, resend), (5, true));
+        // Its plan taken: nothing more until the next step, not even after `resend`.
+        let a = Asking {
+            asked: Some((5, 0.1)),
+            taken: Some(5),
+            ..a
+        };
+        assert_eq!(a.next(0.6, resend), (5, false));
+        assert_eq!(a.next(1.2, resend), (5, false));
+        // Late in the step an obstacle appears: the planner's replan, asked for step 5, comes
+        // when a plan takes over in step 6. Step 6 is asked for at once, not when it begins.
+        let late = Asking {
+            at_switch: 6,
+            late: true,
+            ..a
+        };
+        assert_eq!(late.next(0.8, resend), (6, true));
+        // Still in step 5 afterwards: step 5 is not asked for again (its plan would be late).
+        let after = Asking {
+            at_switch: 6,
+            asked: Some((6, 0.8)),
+            taken: Some(5),
+            late: false,
+            ..a
+        };
+        assert_eq!(after.next(0.9, resend), (6, false));
+        // Step 6 begins: already asked.
+        assert_eq!(Asking { now: 6, ..after }.next(1.0, resend), (6, false));
+        // No plan for it taken (the planner gone): asked again every `resend` s.
+        assert_eq!(Asking { now: 6, ..after }.next(1.8, resend), (6, true));
+        // A late plan while the step at the switch was already asked for: nothing new.
+        let twice = Asking {
+            late: true,
+            ..after
+        };
+        assert_eq!(twice.next(0.85, resend), (6, false));
+        // The first request of a walk.
+        let first = Asking {
+            asked: None,
+            taken: None,
+            ..a
+        };
+        assert_eq!(first.next(0.0, resend), (5, true));
+    }
+
+    #[test]
     fn a_bridge_that_stops_its_drives_is_told_once_at_the_turn() {
         // The finding: a leg's stream ran dry under load and its bridge quick-stopped the
         // drives; the gait walked on. It now hears the turn to stopped (not the repeats of a
@@ -1011,6 +1067,43 @@ pub fn feet_after(timeline: &stride_gait::timeline::Timeline, number: i64) -> ([
         next = s.footstep.side.other();
     }
     (feet, next)
+}
+
+/// What the gait knows when it decides to ask the planner (see [`Asking::next`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Asking {
+    /// The step under way now.
+    pub now: i64,
+    /// The step under way when a plan that came now would take over (after the rows already
+    /// sent): a plan is taken for that step only.
+    pub at_switch: i64,
+    /// The step last asked for, and when (s).
+    pub asked: Option<(i64, f64)>,
+    /// The step the last plan taken was asked for.
+    pub taken: Option<i64>,
+    /// A plan came for a step already past at its switch since the last decision (the
+    /// planner's replan when the world changed comes at any time of a step).
+    pub late: bool,
+}
+
+impl Asking {
+    /// The step to ask for at `t` and whether to ask now: the step under way, as each begins;
+    /// after a late plan, at once the step at the switch (else the replan would wait for the
+    /// next step's request); never a step below the one asked; again every `resend` s while
+    /// no plan for the step asked is taken (a planner restarted, a request lost).
+    pub fn next(&self, t: f64, resend: f64) -> (i64, bool) {
+        let asked = self.asked.map(|(s, _)| s);
+        let step = match asked {
+            Some(s) if self.late && self.at_switch > s => self.at_switch,
+            Some(s) => self.now.max(s),
+            None => self.now,
+        };
+        let due = match self.asked {
+            Some((s, at)) => step != s || (self.taken != Some(s) && t - at >= resend),
+            None => true,
+        };
+        (step, due)
+    }
 }
 
 /// A plan request from the feet `feet` (left, right), `next` to swing first, during step
