@@ -8,7 +8,9 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use lcm::Lcm;
-use stride_lcmtypes::stride::{ArduinoJointStateT, ImuT, JointCommandT, NodeStatusT};
+use stride_lcmtypes::stride::{
+    ArduinoJointStateT, ImuT, JointCommandT, JointStateT, NodeStatusT, PoseStampedT,
+};
 use stride_tests::{bin, handle_until, require_sandbox, udpm_url, Proc};
 
 fn config(dir: &Path, link: &Path) -> PathBuf {
@@ -161,4 +163,99 @@ fn a_leg_board_through_its_link() {
         .and_then(|l| l.trim_end_matches(']').split(", ").nth(3))
         .and_then(|p| p.parse::<f64>().ok());
     assert!(knee.is_some_and(|p| p > 0.05), "{out}");
+}
+
+#[test]
+#[ignore = "multicast: scripts/test runs it in a private network namespace"]
+fn the_simulated_world_stands_archie_on_its_arduino_boards_true_positions() {
+    // Archie's legs on its Arduino boards (fake Dues in each link's process): each link
+    // publishes its board's true joint positions on a sim-only channel, and the simulated
+    // world stands the body on them and moves it as a driven knee turns.
+    require_sandbox();
+    let dir = tempfile::tempdir().unwrap();
+    let url = udpm_url(7772);
+    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let truth = |leg: &str| format!("SIM_JOINT_STATE_ARDUINO_{}_LEG", leg.to_uppercase());
+    let links: Vec<Proc> = ["left", "right"]
+        .iter()
+        .map(|leg| {
+            let mut c = Command::new(bin("stride-arduino-link"));
+            c.args(["--lcm-url", &url, "--log-level", "warn", "--name"])
+                .arg(format!("arduino-{leg}"))
+                .arg("--config")
+                .arg(repo.join(format!("config/robots/archie-arduino-{leg}-leg.toml")))
+                .args(["--true-state-channel", &truth(leg)]);
+            Proc::spawn(c)
+        })
+        .collect();
+    // The shipped simulated world, reading the boards' channels instead of the drives'.
+    let mut sim: toml::Table =
+        toml::from_str(&std::fs::read_to_string(repo.join("config/sim-archie.toml")).unwrap())
+            .unwrap();
+    for key in ["scene", "robot_file"] {
+        let p = repo.join("config").join(sim[key].as_str().unwrap());
+        sim.insert(key.into(), p.display().to_string().into());
+    }
+    sim.insert(
+        "true_joint_channels".into(),
+        toml::Value::Array(vec![truth("left").into(), truth("right").into()]),
+    );
+    let sim_file = dir.path().join("sim.toml");
+    std::fs::write(&sim_file, toml::to_string(&sim).unwrap()).unwrap();
+    let lcm = Lcm::new(&url).unwrap();
+    let knees = Arc::new(Mutex::new(Vec::<f64>::new()));
+    let poses = Arc::new(Mutex::new(Vec::<[f64; 3]>::new()));
+    let (k, p) = (knees.clone(), poses.clone());
+    let _subs = [
+        lcm.subscribe(&truth("left"), move |_, m: JointStateT| {
+            assert_eq!(m.names.len(), 6);
+            assert!(m.positions.iter().all(|p| p.is_finite()));
+            let i = m.names.iter().position(|n| n == "left_knee").unwrap();
+            k.lock().unwrap().push(m.positions[i]);
+        })
+        .unwrap(),
+        lcm.subscribe("SIM_POSE", move |_, m: PoseStampedT| {
+            p.lock().unwrap().push(m.pose.position);
+        })
+        .unwrap(),
+    ];
+    let mut c = Command::new(bin("stride-sim"));
+    c.args(["--lcm-url", &url, "--log-level", "warn", "--config"])
+        .arg(&sim_file);
+    let world = Proc::spawn(c);
+    assert!(
+        handle_until(&lcm, Duration::from_secs(15), || !poses
+            .lock()
+            .unwrap()
+            .is_empty()),
+        "the simulated world never stood the body on the boards' joints"
+    );
+    let first = *poses.lock().unwrap().last().unwrap();
+    let knee0 = *knees.lock().unwrap().last().unwrap();
+    // The left knee driven (duty 0.4, as in the link's test above): its true position turns,
+    // and the simulated body moves with it.
+    let moved = handle_until(&lcm, Duration::from_secs(5), || {
+        lcm.publish("ARCHIE_LEFT_LEG_COMMAND", &duty("left_knee", 0.4))
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(20));
+        let knee = *knees.lock().unwrap().last().unwrap();
+        let pose = *poses.lock().unwrap().last().unwrap();
+        let d = (0..3)
+            .map(|i| (pose[i] - first[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        (knee - knee0).abs() > 0.05 && d > 0.001
+    });
+    assert!(
+        moved,
+        "knee {knee0} -> {:?}, pelvis {first:?} -> {:?}",
+        knees.lock().unwrap().last(),
+        poses.lock().unwrap().last()
+    );
+    let (st, _) = world.interrupt();
+    assert!(st.success());
+    for l in links {
+        let (st, _) = l.interrupt();
+        assert!(st.success());
+    }
 }

@@ -166,16 +166,55 @@ impl Default for PerceptionConfig {
 }
 
 /// A box that appears ahead of the robot once it has touched down so many times (KAIST's
-/// obstacle that appears mid-walk).
+/// obstacle that appears mid-walk): `ahead` m from the pelvis along its heading, or toward a
+/// point of the world (`toward`, e.g. the goal: the box is then on the way there whichever
+/// way the robot turned to step around the last one). The boxes appear in the order listed.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Appear {
     /// After this many touch-downs.
     pub after_touchdowns: u64,
-    /// Its centre this far ahead of the pelvis, along the heading, m.
+    /// Its centre this far ahead of the pelvis, m.
     pub ahead: f64,
-    /// Its length (along the heading), width and height, m.
+    /// Ahead toward this point (x, y, m) instead of along the heading.
+    pub toward: Option<[f64; 2]>,
+    /// Its length (along the direction it appeared in), width and height, m.
     pub size: [f64; 3],
+}
+
+impl Appear {
+    /// Where the box stands (x, y, yaw) if it appears now: `touchdowns` so far, the pelvis at
+    /// (x, y) heading `yaw`. None while it waits.
+    pub fn due(&self, touchdowns: u64, pelvis: [f64; 2], yaw: f64) -> Option<[f64; 3]> {
+        if touchdowns < self.after_touchdowns {
+            return None;
+        }
+        let dir = match self.toward {
+            Some([x, y]) if (x - pelvis[0]).hypot(y - pelvis[1]) > 1e-9 => {
+                (y - pelvis[1]).atan2(x - pelvis[0])
+            }
+            _ => yaw,
+        };
+        Some([
+            pelvis[0] + self.ahead * dir.cos(),
+            pelvis[1] + self.ahead * dir.sin(),
+            dir,
+        ])
+    }
+
+    fn check(&self) -> Result<(), String> {
+        let finite = |v: &[f64]| v.iter().all(|v| v.is_finite());
+        if finite(&[self.ahead])
+            && self.size.iter().all(|v| v.is_finite() && *v > 0.0)
+            && self.toward.is_none_or(|p| finite(&p))
+        {
+            Ok(())
+        } else {
+            Err(format!(
+                "appear: a finite distance and point, and a positive size: {self:?}"
+            ))
+        }
+    }
 }
 
 fn idle_rate_hz() -> f64 {
@@ -225,11 +264,7 @@ impl SimConfig {
             return Err("true_joint_channels: the fake devices' channels are needed".into());
         }
         for a in &self.appear {
-            if !(a.ahead.is_finite() && a.size.iter().all(|v| v.is_finite() && *v > 0.0)) {
-                return Err(format!(
-                    "appear: a finite distance and a positive size: {a:?}"
-                ));
-            }
+            a.check()?;
         }
         if let Some(s) = self.start {
             if !s.iter().all(|v| v.is_finite()) {
@@ -682,14 +717,10 @@ impl Sim {
         };
         let (pelvis, yaw) = (kin.pose.p, yaw_of(&kin.pose));
         while let Some(a) = self.cfg.appear.get(self.appeared).copied() {
-            if touchdowns < a.after_touchdowns {
+            let Some([x, y, yaw]) = a.due(touchdowns, [pelvis[0], pelvis[1]], yaw) else {
                 break;
-            }
+            };
             self.appeared += 1;
-            let (x, y) = (
-                pelvis[0] + a.ahead * yaw.cos(),
-                pelvis[1] + a.ahead * yaw.sin(),
-            );
             let ob = Obstacle::Box {
                 x,
                 y,
@@ -892,6 +923,33 @@ mod tests {
             velocities: vec![0.0; n],
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn a_box_appears_ahead_along_the_heading_or_toward_a_point() {
+        let b7 = Appear {
+            after_touchdowns: 3,
+            ahead: 1.0,
+            toward: None,
+            size: [0.5, 0.5, 1.8],
+        };
+        b7.check().unwrap();
+        let yaw = std::f64::consts::FRAC_PI_2;
+        assert_eq!(b7.due(2, [1.0, 2.0], yaw), None);
+        let [x, y, a] = b7.due(3, [1.0, 2.0], yaw).unwrap();
+        assert!((x - 1.0).abs() < 1e-12 && (y - 3.0).abs() < 1e-12 && a == yaw);
+        // Toward the goal, whichever way the robot faces.
+        let on_the_way = Appear {
+            toward: Some([11.0, 2.0]),
+            ..b7
+        };
+        let [x, y, a] = on_the_way.due(5, [1.0, 2.0], yaw).unwrap();
+        assert!((x - 2.0).abs() < 1e-12 && (y - 2.0).abs() < 1e-12 && a.abs() < 1e-12);
+        let bad = Appear {
+            toward: Some([f64::NAN, 0.0]),
+            ..b7
+        };
+        assert!(bad.check().is_err());
     }
 
     #[test]
