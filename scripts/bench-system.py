@@ -51,6 +51,9 @@ class Hosts:
         self.routed = routed
         self.tag = tag
         self.names = ["robot", "laptop"]
+        # A run killed before its close left its namespaces' names behind (/run/netns outlives
+        # the sandbox's network namespace): they would refuse these.
+        self.close()
         if routed:
             sh("sysctl -qw net.ipv4.ip_forward=1")
         else:
