@@ -11,7 +11,7 @@ use lcm::Lcm;
 use stride_lcmtypes::stride::{
     ArduinoJointStateT, ImuT, JointCommandT, JointStateT, NodeStatusT, PoseStampedT,
 };
-use stride_tests::{bin, handle_until, require_sandbox, udpm_url, Proc};
+use stride_tests::{bin, handle_until, on_bus, require_sandbox, udpm_url, Proc};
 
 fn config(dir: &Path, link: &Path) -> PathBuf {
     let text = std::fs::read_to_string(
@@ -179,8 +179,8 @@ fn the_simulated_world_stands_archie_on_its_arduino_boards_true_positions() {
     let links: Vec<Proc> = ["left", "right"]
         .iter()
         .map(|leg| {
-            let mut c = Command::new(bin("stride-arduino-link"));
-            c.args(["--lcm-url", &url, "--log-level", "warn", "--name"])
+            let mut c = on_bus("stride-arduino-link", &url);
+            c.arg("--name")
                 .arg(format!("arduino-{leg}"))
                 .arg("--config")
                 .arg(repo.join(format!("config/robots/archie-arduino-{leg}-leg.toml")))
@@ -219,9 +219,8 @@ fn the_simulated_world_stands_archie_on_its_arduino_boards_true_positions() {
         })
         .unwrap(),
     ];
-    let mut c = Command::new(bin("stride-sim"));
-    c.args(["--lcm-url", &url, "--log-level", "warn", "--config"])
-        .arg(&sim_file);
+    let mut c = on_bus("stride-sim", &url);
+    c.arg("--config").arg(&sim_file);
     let world = Proc::spawn(c);
     assert!(
         handle_until(&lcm, Duration::from_secs(15), || !poses
