@@ -624,6 +624,8 @@ def stages_bench(goal, timeout, goals, obstacles):
     seen to a plan avoiding each; and each app's CPU while walking."""
     tmp = Path(tempfile.mkdtemp())
     runs = {}
+    # Each corridor's plan stages and obstacle stages, one host and split (decoded once).
+    boxed = {"one": ({}, {}), "split": ({}, {})}
     corridor = obstacle_world(0, 40.0)
     for where in ["one", "split"]:
         hosts = None if where == "one" else Hosts(False, where[0])
@@ -649,7 +651,11 @@ def stages_bench(goal, timeout, goals, obstacles):
                 boxes = tmp / f"{where}-boxes{part}.lcmlog"
                 *_, said = session(hosts, boxes, box_trials(left, limit),
                                    obstacle_world(left, length))
-                trials += len(obstacle_stages_of(boxes)["seen→first set-point"])
+                for whole, found in zip(boxed[where], [stages_of(boxes),
+                                                       obstacle_stages_of(boxes)]):
+                    for k, v in found.items():
+                        whole.setdefault(k, []).extend(v)
+                trials = len(boxed[where][1]["seen→first set-point"])
                 runs[where, "boxes"].append(said)
                 log(f"  {said}; {trials} trials so far")
         finally:
@@ -659,11 +665,7 @@ def stages_bench(goal, timeout, goals, obstacles):
     for where in ["one", "split"]:
         g = goal_stages_of(tmp / f"{where}-goals.lcmlog")
         w = stages_of(tmp / f"{where}-walk.lcmlog")
-        o, b = {}, {}
-        for boxes in sorted(tmp.glob(f"{where}-boxes?.lcmlog")):
-            for whole, part in [(o, stages_of(boxes)), (b, obstacle_stages_of(boxes))]:
-                for k, v in part.items():
-                    whole.setdefault(k, []).extend(v)
+        o, b = boxed[where]
         stages[where] = {**g, **{k: w[k] + o.get(k, []) for k in w}, **b}
     keys = ["goal→first request", "goal→first set-point", "request→plan", "plan→taken",
             "plan→first set-point", "seen→replan", "seen→plan taken", "seen→first set-point"]
