@@ -8,7 +8,7 @@ use stride_elmo::Master;
 use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
 use stride_fakes::Sim;
 use stride_lcmtypes::stride::{GaitCommandT, JointTrajectoryT, NodeStatusT};
-use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Stamper, Throttle, Tick};
+use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Spaced, Stamper, Throttle, Tick};
 
 use crate::{Bridge, BridgeConfig};
 
@@ -110,8 +110,15 @@ pub struct ElmoApp<'n> {
     period: Duration,
     idle_period: Duration,
     next_state: Instant,
-    next_status: Instant,
+    /// The status: once a second, and on a change at most every STATUS_GAP.
+    status_pace: Spaced,
+    /// A change not yet said (it waits for the gap).
+    status_pending: bool,
 }
+
+/// A change of the status goes out at most this often (a flood of bad trajectories does not
+/// become a flood of statuses).
+const STATUS_GAP: Duration = Duration::from_millis(20);
 
 impl<'n> ElmoApp<'n> {
     /// Opens the bus, brings the drives up and subscribes; refuses to start otherwise.
@@ -145,7 +152,8 @@ impl<'n> ElmoApp<'n> {
             states: Stamper::new(""),
             statuses: Stamper::new(""),
             next_state: now,
-            next_status: now,
+            status_pace: Spaced::new(Duration::from_secs(1), STATUS_GAP),
+            status_pending: true,
         })
     }
 }
@@ -195,18 +203,19 @@ impl Tick for ElmoApp<'_> {
                 tracing::warn!(error = %e, "could not publish joint states");
             }
         }
-        if self.bridge.take_changed() || now >= self.next_status {
-            self.next_status = now + Duration::from_secs(1);
+        self.status_pending |= self.bridge.take_changed();
+        if self.status_pace.take(now, self.status_pending) {
+            self.status_pending = false;
             let msg = self.bridge.status(self.statuses.stamp(), node.name());
             if let Err(e) = publisher.publish(&self.cfg.trajectory_status_channel, &msg) {
                 tracing::warn!(error = %e, "could not publish the trajectory status");
             }
         }
-        Ok(self
-            .bridge
-            .next_wake()
-            .min(next_state)
-            .min(self.next_status))
+        let status = self
+            .status_pace
+            .wake(self.status_pending)
+            .unwrap_or(now + Duration::from_secs(1));
+        Ok(self.bridge.next_wake().min(next_state).min(status))
     }
 
     fn stop(mut self, _node: &Node) -> anyhow::Result<()> {

@@ -306,15 +306,31 @@ impl Recovery {
 /// What the bridge logs, each once, in one line; and the node's health it keeps.
 pub use stride_node::{Health, Note};
 
-/// How the bridge comes back from a stop, as its status says.
+/// How the bridge comes back from a stop, as its status and its heartbeat say.
 pub const REARM: &str =
     "automatic: the next valid trajectory, starting where the joints stand, enables the drives again";
+
+/// How the bridge comes back from the system stop.
+pub const RESUME: &str =
+    "stride resume, then a valid trajectory starting where the joints stand enables the drives again";
+
+/// How the bridge comes back from a stream run dry.
+pub const REARM_DRY: &str =
+    "automatic: the next valid trajectory, starting where the joints come to rest, moves them again";
 
 /// The bridge: the master, and what to do when.
 pub struct Bridge<B: CanBus> {
     master: Master<B>,
     recovery: Recovery,
+    /// The health, made from what the status says (see [`Bridge::condition`]).
     health: Health,
+    /// The master's stop is a fault of the drives (an emergency, an underflow), not an order.
+    fault: bool,
+    /// The stream ran dry (a chunk ended in motion, none came in time): the joints
+    /// decelerated to a stop; until the next trajectory is taken.
+    dry: Option<String>,
+    /// The last refusal, while no trajectory was taken since.
+    refusal: Option<String>,
     /// Why the drives are down (bus, reset), while recovery runs.
     down: Option<String>,
     last_refusal: String,
@@ -342,6 +358,9 @@ impl<B: CanBus> Bridge<B> {
             master,
             recovery: Recovery::new(recovery_delay_ms),
             health: ok(),
+            fault: false,
+            dry: None,
+            refusal: None,
             down: None,
             last_refusal: String::new(),
             last_refused: -1,
@@ -359,8 +378,9 @@ impl<B: CanBus> Bridge<B> {
         if self.held.is_none() {
             self.held = Some(why.to_owned());
             if self.down.is_none() {
-                self.stop(format!("system stop ({why})"), &mut notes);
+                self.stop(format!("system stop ({why})"), false, &mut notes);
             }
+            self.update();
         }
         notes
     }
@@ -370,6 +390,7 @@ impl<B: CanBus> Bridge<B> {
         match self.held.take() {
             Some(_) => {
                 self.changed = true;
+                self.update();
                 vec![Note::Info("system stop lifted".into())]
             }
             None => Vec::new(),
@@ -394,9 +415,75 @@ impl<B: CanBus> Bridge<B> {
             .unwrap_or_else(|| self.master.next_wake())
     }
 
-    fn set(&mut self, state: i8, detail: String) {
-        self.health = Health { state, detail };
-        self.changed = true;
+    /// What the status and the heartbeat both say: the status's state, reason and recovery,
+    /// and the heartbeat's state (their words are the same).
+    fn condition(&self) -> (i8, String, String, i8) {
+        let s = self.master.status();
+        let (stopped, moving, idle) = (
+            TrajectoryStatusT::STATE_STOPPED,
+            TrajectoryStatusT::STATE_MOVING,
+            TrajectoryStatusT::STATE_IDLE,
+        );
+        let (fault, degraded) = (NodeStatusT::STATE_FAULT, NodeStatusT::STATE_DEGRADED);
+        if let Some(why) = &self.down {
+            let recovery = format!(
+                "automatic: the drives are brought up again when they answer (next try \
+                 within {:.1} s)",
+                self.recovery.delay().as_secs_f64()
+            );
+            return (
+                TrajectoryStatusT::STATE_RECOVERING,
+                why.clone(),
+                recovery,
+                fault,
+            );
+        }
+        if let Some(why) = &self.held {
+            let reason = format!("system stop ({why}): every axis quick-stopped and held");
+            return (stopped, reason, RESUME.into(), degraded);
+        }
+        if let Some(why) = &s.stopped {
+            let state = if self.fault { fault } else { degraded };
+            return (
+                stopped,
+                format!("{why}: quick-stopped"),
+                REARM.into(),
+                state,
+            );
+        }
+        if let Some(why) = &self.dry {
+            return (stopped, why.clone(), REARM_DRY.into(), degraded);
+        }
+        let state = if s.queued_until.is_some() || !self.master.idle() {
+            moving
+        } else {
+            idle
+        };
+        let health = if self.refusal.is_some() {
+            degraded
+        } else {
+            NodeStatusT::STATE_RUNNING
+        };
+        (state, String::new(), String::new(), health)
+    }
+
+    /// Makes the health from the condition; a change is published at once.
+    fn update(&mut self) {
+        let (_, reason, recovery, state) = self.condition();
+        let detail = match (reason.is_empty(), recovery.is_empty()) {
+            (true, _) => self.refusal.clone().unwrap_or_default(),
+            (false, true) => reason,
+            (false, false) => format!("{reason}; {recovery}"),
+        };
+        let detail = if state == NodeStatusT::STATE_RUNNING {
+            String::new()
+        } else {
+            detail
+        };
+        if self.health.state != state || self.health.detail != detail {
+            self.health = Health { state, detail };
+            self.changed = true;
+        }
     }
 
     /// A trajectory from the bus: converted, checked and queued, or refused whole (the
@@ -426,9 +513,13 @@ impl<B: CanBus> Bridge<B> {
         match self.master.load(&t, now) {
             Ok(a) => {
                 self.last_accepted = m.header.sequence;
-                if a.rearmed || self.health.state != NodeStatusT::STATE_RUNNING {
-                    self.set(NodeStatusT::STATE_RUNNING, String::new());
+                self.refusal = None;
+                self.dry = None;
+                if a.rearmed {
+                    self.fault = false;
                 }
+                self.changed = true;
+                self.update();
                 if a.rearmed {
                     vec![Note::Info("drives enabled again".into())]
                 } else {
@@ -446,35 +537,29 @@ impl<B: CanBus> Bridge<B> {
     fn refused(&mut self, m: &JointTrajectoryT, why: String) {
         self.last_refusal = why.clone();
         self.last_refused = m.header.sequence;
-        if self.master.status().stopped.is_none() && self.down.is_none() {
-            self.set(NodeStatusT::STATE_DEGRADED, why);
-        } else {
-            self.changed = true;
-        }
+        self.refusal = Some(why);
+        self.changed = true;
+        self.update();
     }
 
-    /// Stops every axis for `why` (the drives stay stopped until the next valid trajectory).
-    fn stop(&mut self, why: String, notes: &mut Vec<Note>) {
+    /// Stops every axis for `why` (the drives stay stopped until the next valid trajectory);
+    /// `fault`: a fault of the drives, not an order.
+    fn stop(&mut self, why: String, fault: bool, notes: &mut Vec<Note>) {
         for e in self.master.quick_stop(&why) {
             notes.push(Note::Error(format!("quick stop: {e}")));
         }
         notes.push(Note::Error(format!("{why}: every axis quick-stopped")));
-        self.set(
-            NodeStatusT::STATE_FAULT,
-            format!("{why}: quick-stopped; {REARM}"),
-        );
+        self.fault = fault;
+        self.dry = None;
+        self.update();
     }
 
     /// The bus or a drive is down for `why`: recovery runs, first after its delay from now
-    /// (after the stop, which may have waited on silent drives); `when` says what it waits
-    /// for.
-    fn go_down(&mut self, why: String, when: &str) {
+    /// (after the stop, which may have waited on silent drives).
+    fn go_down(&mut self, why: String) {
         self.recovery.failed(Instant::now());
-        self.set(
-            NodeStatusT::STATE_FAULT,
-            format!("{why}; bringing the drives up again{when}"),
-        );
         self.down = Some(why);
+        self.update();
     }
 
     /// One cycle: recovery when due, the master's pump, and what its events mean.
@@ -488,17 +573,14 @@ impl<B: CanBus> Bridge<B> {
                 Ok(()) => {
                     self.recovery.succeeded();
                     self.down = None;
+                    self.refusal = None;
                     notes.push(Note::Info("drives up again".into()));
-                    self.set(NodeStatusT::STATE_RUNNING, String::new());
+                    self.update();
                 }
                 Err(e) => {
                     self.recovery.failed(Instant::now());
-                    let why = self.down.clone().unwrap_or_default();
                     notes.push(Note::Warn(format!("drives still down: {e}")));
-                    self.set(
-                        NodeStatusT::STATE_FAULT,
-                        format!("{why}; bringing the drives up again: {e}"),
-                    );
+                    self.update();
                     return notes;
                 }
             }
@@ -507,18 +589,18 @@ impl<B: CanBus> Bridge<B> {
             // Bus-off or a dead interface: the drives stop on their own without the
             // bridge's heartbeat; they are brought up again once the bus answers.
             notes.push(Note::Error(format!("CAN cycle failed: {e}")));
-            self.go_down(format!("CAN: {e}"), " when the bus answers");
+            self.go_down(format!("CAN: {e}"));
             return notes;
         }
         for e in self.master.take_events() {
             match e {
                 Event::Emergency { joint, text, emcy } => {
                     let why = format!("{joint}: emergency {:#06x} ({text})", emcy.code);
-                    self.stop(why, &mut notes);
+                    self.stop(why, true, &mut notes);
                 }
                 Event::Underflow { joint } => {
                     let why = format!("{joint} ran out of rows while moving");
-                    self.stop(why, &mut notes);
+                    self.stop(why, true, &mut notes);
                 }
                 Event::InterpreterError {
                     joint,
@@ -526,17 +608,17 @@ impl<B: CanBus> Bridge<B> {
                     code,
                 } => {
                     let why = format!("{joint}: the drive refused {command} (error {code})");
-                    self.stop(why, &mut notes);
+                    self.stop(why, true, &mut notes);
                 }
                 Event::HeartbeatLost { joint } => {
                     let why = format!("{joint}: heartbeat lost");
-                    self.stop(why.clone(), &mut notes);
-                    self.go_down(why, " when it answers");
+                    self.stop(why.clone(), true, &mut notes);
+                    self.go_down(why);
                 }
                 Event::Rebooted { joint } => {
                     let why = format!("{joint}: drive reset");
-                    self.stop(why.clone(), &mut notes);
-                    self.go_down(why, "");
+                    self.stop(why.clone(), true, &mut notes);
+                    self.go_down(why);
                 }
                 Event::EndUnreported { joint } => notes.push(Note::Warn(format!(
                     "{joint}: the drive did not report the end of its last motion; the next \
@@ -548,12 +630,13 @@ impl<B: CanBus> Bridge<B> {
                         joints.join(", ")
                     );
                     notes.push(Note::Warn(why.clone()));
-                    if self.health.state == NodeStatusT::STATE_RUNNING {
-                        self.set(NodeStatusT::STATE_DEGRADED, why);
-                    }
+                    self.dry = Some(why);
+                    self.changed = true;
                 }
             }
         }
+        // The health follows what the status says (a motion that ended, an idle master).
+        self.update();
         notes
     }
 
@@ -577,33 +660,7 @@ impl<B: CanBus> Bridge<B> {
     pub fn status(&self, header: HeaderT, node: &str) -> TrajectoryStatusT {
         let s = self.master.status();
         let c = s.counters;
-        let (state, reason, recovery) = if let Some(why) = &self.down {
-            (
-                TrajectoryStatusT::STATE_RECOVERING,
-                why.clone(),
-                format!(
-                    "automatic: the drives are brought up again when they answer (next try \
-                     within {:.1} s)",
-                    self.recovery.delay().as_secs_f64()
-                ),
-            )
-        } else if let Some(why) = &self.held {
-            (
-                TrajectoryStatusT::STATE_STOPPED,
-                format!("system stop ({why})"),
-                "stride resume, then a valid trajectory".into(),
-            )
-        } else if let Some(why) = &s.stopped {
-            (TrajectoryStatusT::STATE_STOPPED, why.clone(), REARM.into())
-        } else if s.queued_until.is_some() || !self.master.idle() {
-            (
-                TrajectoryStatusT::STATE_MOVING,
-                String::new(),
-                String::new(),
-            )
-        } else {
-            (TrajectoryStatusT::STATE_IDLE, String::new(), String::new())
-        };
+        let (state, reason, recovery, _) = self.condition();
         let wall = |t: Instant| {
             let ahead = t.saturating_duration_since(Instant::now());
             (SystemTime::now() + ahead)

@@ -10,6 +10,7 @@ use anyhow::Context;
 use stride_gait::archie::{ArchieGait, JointPlan, Joints};
 use stride_gait::hexapod::{HexConfig, HexGait, HexRow};
 use stride_gait::pattern::Pattern;
+use stride_gait::swing::Place;
 use stride_gait::timeline::Footstep;
 use stride_gait::walker::{StepCounter, Verdict, Walker};
 use stride_gait::GaitError;
@@ -19,13 +20,14 @@ use stride_lcmtypes::stride::{
     FootstepPlanT, GaitCommandT, ImuT, JointStateT, NodeStatusT, OdometryT, PoseStampedT,
     TrajectoryStatusT,
 };
-use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
+use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Spaced, Stamper, Throttle, Tick};
 
 use crate::{
     at_goal, command_msg, counter_msg, feet_after, goal_of, min_jerk, odometry_pelvis, pelvis_at,
-    plan_of, request_msg, trajectory_msg, Anchor, Asking, BridgeWatch, GaitConfig, Goal,
-    GoalConfig, Robot, ROW_PERIOD,
+    plan_of, request_msg, stand_from, trajectory_msg, Anchor, Asking, BridgeStop, BridgeWatch,
+    GaitConfig, Goal, GoalConfig, Robot, ROW_PERIOD,
 };
+use stride_gait::short;
 
 /// The walking controller.
 ///
@@ -81,7 +83,11 @@ struct Group {
     states: Option<(lcm::Subscription, Receiver<JointStateT>)>,
     /// The last measured position of each joint, and when.
     measured: BTreeMap<String, (f64, Instant)>,
-    stamper: Stamper,
+    /// Each joint's last measured speed (rad/s; NaN: unknown).
+    speeds: BTreeMap<String, f64>,
+    /// The headers of the trajectories and of the set-points: a sequence per channel.
+    trajectory_stamper: Stamper,
+    command_stamper: Stamper,
     /// The trajectory bridge's status, and what it last said.
     bridge: Option<(lcm::Subscription, Receiver<TrajectoryStatusT>)>,
     bridge_watch: BridgeWatch,
@@ -90,7 +96,7 @@ struct Group {
 impl Group {
     /// Why the group's bridge stopped its drives, if its status turned to stopped since the
     /// last call.
-    fn bridge_stopped(&mut self) -> Option<String> {
+    fn bridge_stopped(&mut self) -> Option<BridgeStop> {
         let (_, rx) = self.bridge.as_ref()?;
         let mut why = None;
         for m in rx.try_iter() {
@@ -102,8 +108,18 @@ impl Group {
     fn take_states(&mut self, now: Instant) {
         if let Some((_, rx)) = &self.states {
             while let Ok(s) = rx.try_recv() {
-                for (n, p) in s.names.iter().zip(&s.positions) {
+                for (i, (n, p)) in s.names.iter().zip(&s.positions).enumerate() {
                     if p.is_finite() {
+                        // The speed: the bridge's, else the change since the last position
+                        // (unknown when both came in one turn).
+                        let v = match (s.velocities.get(i), self.measured.get(n)) {
+                            (Some(v), _) if v.is_finite() => *v,
+                            (_, Some((q, at))) if now > *at => {
+                                (p - q) / now.saturating_duration_since(*at).as_secs_f64()
+                            }
+                            _ => f64::NAN,
+                        };
+                        self.speeds.insert(n.clone(), v);
                         self.measured.insert(n.clone(), (*p, now));
                     }
                 }
@@ -138,7 +154,20 @@ impl Group {
     fn position(&self, joint: &str) -> Option<f64> {
         self.measured.get(joint).map(|m| m.0)
     }
+
+    /// Every joint at rest (a motion starts from rest: rows sent while the joints still
+    /// decelerate from a stop are refused); a joint whose speed is unknown counts as still.
+    fn still(&self) -> bool {
+        self.states.is_none()
+            || self
+                .joints
+                .iter()
+                .all(|n| self.speeds.get(n).is_none_or(|v| v.is_nan() || v.abs() < STILL_SPEED))
+    }
 }
+
+/// Slower than this, rad/s, a joint is at rest.
+const STILL_SPEED: f64 = 0.01;
 
 /// Rows of joints in time (walker time, s): positions and velocities per group, in group
 /// order.
@@ -253,8 +282,23 @@ enum Phase {
     Posing(f64),
     /// Walking or standing on patterns.
     Ready,
+    /// The drives stopped under the walk (see [`Halt`]): nothing goes out until the gait may
+    /// stand the robot up again from where its joints are.
+    Halted,
     /// Stopped for good, and why.
     Fault(String),
+}
+
+/// The walk stopped under the gait: a bridge stopped its drives (an emergency, the system
+/// stop, its stream run dry) or a joint left the pattern. What the gait sent no longer says
+/// where the joints are: it stands the robot up from where they come to rest, into the
+/// standing pose, and only then takes goals again.
+#[derive(Debug, Clone, PartialEq)]
+struct Halt {
+    why: String,
+    /// At once (a stream run dry: the gait's own lateness, nothing wrong with the drives);
+    /// otherwise only after a resume command.
+    auto: bool,
 }
 
 enum Body {
@@ -306,6 +350,21 @@ pub struct GaitApp {
     t0: Instant,
     utime0: i64,
     phase: Phase,
+    /// Why the drives stopped under the walk, while the gait waits to stand up again.
+    halt: Option<Halt>,
+    /// A resume came since the halt.
+    resumed: bool,
+    /// Where the feet stand once the robot is brought into its pose after a halt.
+    restand: Option<[Place; 2]>,
+    /// The first odometry sets the anchor (a gait restarted mid-walk stands where its frame
+    /// says nothing of); later ones correct it.
+    anchored: bool,
+    /// The last plan request sent.
+    last_request: Option<i64>,
+    /// Plans not looked at: a newer one for the same step came in the same turn.
+    superseded: u64,
+    /// Refusals' log lines, thinned (a flood of bad plans does not flood the log).
+    refusal_log: Throttle,
     /// The rows being played, and the index of the last row sent to the trajectory bridges
     /// (None: nothing of them sent yet: the next chunk replaces).
     rows: Rows,
@@ -325,7 +384,7 @@ pub struct GaitApp {
     last_set: Vec<Option<(Vec<f64>, Instant)>>,
     /// [`GaitApp::urgent_count`] when last asked.
     urgent_seen: u64,
-    status_period: Period,
+    status_pace: Spaced,
     counter_stamper: Stamper,
     status_stamper: Stamper,
     status: TrajectoryStatusT,
@@ -334,6 +393,15 @@ pub struct GaitApp {
 
 /// The loop's period while the robot stands with nothing to do.
 const IDLE_TICK: Duration = Duration::from_millis(20);
+
+/// How the gait comes back from a halt, as its status says.
+const HALT_AUTO: &str =
+    "automatic: once the joints rest, the gait brings them into the standing pose from where they stand";
+const HALT_RESUME: &str = "stride resume (a resume command): the gait then brings the joints into the standing pose from where they stand";
+
+/// The gait's status goes out on a change at most this often (a reason whose figure changes
+/// every tick does not flood the bus).
+const STATUS_GAP: Duration = Duration::from_millis(50);
 
 /// Rows of the pattern are made this far (s) beyond the stream's reach when they were not
 /// made with it (see `GaitApp::make_rows`).
@@ -418,7 +486,9 @@ impl GaitApp {
             .into_iter()
             .map(|(name, joints, ch)| -> anyhow::Result<Group> {
                 Ok(Group {
-                    stamper: Stamper::new(""),
+                    trajectory_stamper: Stamper::new(""),
+                    command_stamper: Stamper::new(""),
+                    speeds: BTreeMap::new(),
                     bridge: match &ch.status {
                         Some(c) => Some(node.queue::<TrajectoryStatusT>(c)?),
                         None => None,
@@ -468,7 +538,7 @@ impl GaitApp {
             last_counter: None,
             last_set: vec![None; groups.len()],
             urgent_seen: 0,
-            status_period: Period::hz(1.0),
+            status_pace: Spaced::new(Duration::from_secs(1), STATUS_GAP),
             counter_stamper: Stamper::new(""),
             status_stamper: Stamper::new(""),
             status: TrajectoryStatusT {
@@ -501,6 +571,13 @@ impl GaitApp {
             t0: Instant::now(),
             utime0: now_utime(),
             phase: Phase::Waiting(0.0),
+            halt: None,
+            resumed: false,
+            restand: None,
+            anchored: false,
+            last_request: None,
+            superseded: 0,
+            refusal_log: Throttle::new(Duration::from_secs(1)),
             rows: stand,
             sent: None,
             fresh: false,
@@ -576,7 +653,8 @@ impl GaitApp {
     }
 
     fn refused(&mut self, why: String) {
-        tracing::warn!("plan refused: {why}");
+        self.refusal_log
+            .log([stride_node::Note::Warn(format!("plan refused: {why}"))]);
         self.status.refused += 1;
         self.status.last_refusal = why;
         self.status_changed = true;
@@ -656,6 +734,18 @@ impl GaitApp {
                 continue;
             };
             let est = Anchor::between(world, gait);
+            // The first estimate places the frame (a gait restarted where the robot was left
+            // knows nothing of where that is); later ones correct it a share at a time.
+            if !self.anchored {
+                // Only once the robot stands in the pose the pattern has (not while it moves
+                // into it from elsewhere).
+                if self.phase != Phase::Ready {
+                    continue;
+                }
+                self.anchored = true;
+                self.anchor = est;
+                continue;
+            }
             let off = est.distance(&self.anchor, [gait[0], gait[1]]);
             if off > cfg.odometry_max_jump {
                 self.odometry_dropped += 1;
@@ -693,28 +783,42 @@ impl GaitApp {
             let stream_end = self.stream_end(t);
             match (c.command, &mut self.body) {
                 (GaitCommandT::COMMAND_STOP, Body::Archie { walker, legs, .. }) => {
+                    // The system stop is sent again every second while it holds: said once.
+                    if walker.is_stopped() {
+                        tracing::debug!("stop: {}", c.reason);
+                        continue;
+                    }
                     tracing::info!("stop: {}", c.reason);
                     walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
                     // The walk ends here: a resume stands until a goal is sent (the robot
                     // never walks off on its own after a stop).
                     if let Some(p) = self.goal.take() {
-                        tracing::info!("goal ({:.3}, {:.3}) dropped", p.goal.x, p.goal.y);
+                        tracing::info!("goal ({}, {}) dropped", short(p.goal.x), short(p.goal.y));
                         self.goal_note.clear();
                     }
-                    match legs.joints_until(walker.pattern(), f64::INFINITY) {
-                        Ok(j) => self.adopt(j, t),
-                        Err(e) => self.fault(node, format!("stopping: {e}")),
+                    // Walking on patterns: the stand is streamed (halted or not yet standing
+                    // in the pose, nothing goes out).
+                    if self.phase == Phase::Ready {
+                        match legs.joints_until(walker.pattern(), f64::INFINITY) {
+                            Ok(j) => self.adopt(j, t),
+                            Err(e) => self.fault(node, format!("stopping: {e}")),
+                        }
                     }
-                    self.set_status(
-                        TrajectoryStatusT::STATE_STOPPED,
-                        format!("stopped by command: {}", c.reason),
-                    );
-                    self.status.recovery = "a resume command (stride.gait_command_t)".into();
+                    if self.halt.is_none() {
+                        self.set_status(
+                            TrajectoryStatusT::STATE_STOPPED,
+                            format!("stopped by command: {}", c.reason),
+                        );
+                        self.status.recovery = "a resume command (stride.gait_command_t)".into();
+                    }
                 }
                 (GaitCommandT::COMMAND_RESUME, Body::Archie { walker, .. }) => {
                     walker.resume();
-                    self.status.recovery.clear();
-                    self.set_status(TrajectoryStatusT::STATE_IDLE, "");
+                    self.resumed = true;
+                    if self.halt.is_none() {
+                        self.status.recovery.clear();
+                        self.set_status(TrajectoryStatusT::STATE_IDLE, "");
+                    }
                 }
                 (GaitCommandT::COMMAND_STOP, Body::Hexapod { .. }) => {
                     // Hold where the servos are now.
@@ -782,6 +886,99 @@ impl GaitApp {
         self.phase = Phase::Fault(why);
     }
 
+    /// The drives stopped under the walk (see [`Halt`]): nothing more goes out, the goal is
+    /// dropped, and the status says why and how the gait comes back. A second stop meanwhile
+    /// keeps the first reason (one that waits for a resume wins).
+    fn halt(&mut self, node: &Node, t: f64, why: String, auto: bool) {
+        if matches!(self.phase, Phase::Fault(_)) {
+            return;
+        }
+        if let Some(h) = &mut self.halt {
+            h.auto &= auto;
+            if !h.auto {
+                self.status.recovery = HALT_RESUME.into();
+            }
+            return;
+        }
+        tracing::warn!("{why}: the walk stops");
+        if let Body::Archie { walker, .. } = &self.body {
+            self.restand = Some(stand_from(
+                &walker.pattern().timeline,
+                t,
+                self.cfg.walker.stance_width,
+            ));
+        }
+        if let Some(p) = self.goal.take() {
+            tracing::info!("goal ({}, {}) dropped", short(p.goal.x), short(p.goal.y));
+            self.goal_note.clear();
+        }
+        self.quiet = true;
+        self.phase = Phase::Halted;
+        self.resumed = false;
+        self.status.recovery = if auto { HALT_AUTO } else { HALT_RESUME }.into();
+        self.set_status(TrajectoryStatusT::STATE_STOPPED, why.clone());
+        node.set_health(NodeStatusT::STATE_DEGRADED, why.clone());
+        self.halt = Some(Halt { why, auto });
+    }
+
+    /// Halted: once it may (at once after a dry stream, else after a resume, and never while
+    /// stopped by a command), the gait stands the robot up from where its joints are: a
+    /// walker standing where the feet will be, its step counter going on, then the move into
+    /// the standing pose from the measured joints once they rest.
+    fn halted(&mut self, node: &Node, t: f64) {
+        let Some(h) = &self.halt else {
+            return;
+        };
+        let stopped = match &self.body {
+            Body::Archie { walker, .. } => walker.is_stopped(),
+            Body::Hexapod { .. } => false,
+        };
+        if !(h.auto || self.resumed) || stopped {
+            return;
+        }
+        let why = h.why.clone();
+        if let Body::Archie {
+            legs,
+            walker,
+            joints,
+            ..
+        } = &mut self.body
+        {
+            let [left, right] = self
+                .restand
+                .take()
+                .unwrap_or(walker.pattern().timeline.feet_end);
+            let number = walker.counter(t).number;
+            let gen = walker.generator().clone();
+            match Walker::new(gen, self.cfg.walker, t, left, right, number)
+                .map_err(|e| e.to_string())
+                .and_then(|w| {
+                    legs.joints_until(w.pattern(), f64::INFINITY)
+                        .map(|j| (w, j))
+                        .map_err(|e| e.to_string())
+                }) {
+                Ok((w, j)) => {
+                    **walker = w;
+                    **joints = j;
+                }
+                Err(e) => return self.fault(node, format!("no standing pose after a stop: {e}")),
+            }
+        }
+        self.rows = standing_rows(&self.body, self.groups.len());
+        self.sent = None;
+        self.quiet = true;
+        self.halt = None;
+        self.resumed = false;
+        tracing::info!("standing up from where the joints are, after: {why}");
+        self.status.recovery.clear();
+        self.set_status(
+            TrajectoryStatusT::STATE_IDLE,
+            format!("standing up from where the joints are (after: {why})"),
+        );
+        node.set_health(NodeStatusT::STATE_STARTING, "standing up after a stop");
+        self.phase = Phase::Waiting(t);
+    }
+
     /// Waits for the joints' states, then starts from where they are.
     fn wait(&mut self, node: &Node, t: f64, now: Instant, since: f64) {
         if !self.groups.iter().all(|g| g.all_measured(now)) {
@@ -794,6 +991,10 @@ impl GaitApp {
                     .collect();
                 self.fault(node, format!("no joint states from {missing:?} for 5 s"));
             }
+            return;
+        }
+        // A motion starts from rest (after a stop the joints still decelerate a while).
+        if !self.groups.iter().all(Group::still) {
             return;
         }
         let stand: Vec<Vec<f64>> = (0..self.groups.len())
@@ -887,7 +1088,9 @@ impl GaitApp {
             let left = walker.pattern().timeline.feet_start[0];
             let right = walker.pattern().timeline.feet_start[1];
             let gen = walker.generator().clone();
-            match Walker::new(gen, self.cfg.walker, t, left, right, 0)
+            // The step counter goes on from where it stood (it never goes back).
+            let number = walker.counter(t).number;
+            match Walker::new(gen, self.cfg.walker, t, left, right, number)
                 .map_err(|e| e.to_string())
                 .and_then(|w| {
                     legs.joints_until(w.pattern(), f64::INFINITY)
@@ -936,22 +1139,63 @@ impl GaitApp {
         let mut taken = 0;
         let mut late = false;
         let mut taken_echo = None;
+        let mut unreachable = None;
+        // Of the plans come since the last turn, only the newest for the step a plan is
+        // taken for is made into a pattern (the one it would replace the others with): a
+        // flood of copies costs their decoding, not a pattern each.
+        let switch = on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end);
+        let wanted = walker.wanted_echo(switch);
+        let mut parsed = Vec::new();
         while let Ok(msg) = plans.try_recv() {
-            let plan = match plan_of(&msg) {
+            match msg.status {
+                FootstepPlanT::STATUS_OK | FootstepPlanT::STATUS_PARTIAL => {}
+                // A request answered by a newer one's plan: nothing to take.
+                FootstepPlanT::STATUS_SUPERSEDED => {
+                    self.superseded += 1;
+                    continue;
+                }
+                // The planner cannot reach the goal from here (beyond its reach, no way
+                // round the obstacles): the walk to it ends, with the planner's reason,
+                // when it answers the last request.
+                FootstepPlanT::STATUS_NO_PATH
+                | FootstepPlanT::STATUS_START_IN_COLLISION
+                | FootstepPlanT::STATUS_GOAL_IN_COLLISION
+                | FootstepPlanT::STATUS_GOAL_OUTSIDE_MAP
+                | FootstepPlanT::STATUS_BAD_REQUEST
+                    if Some(msg.request_id) == self.last_request =>
+                {
+                    unreachable = Some(msg.detail.clone());
+                    continue;
+                }
+                // An answer to an older request, or a search that ran out of time (the
+                // request goes again): not a plan, not a refusal.
+                FootstepPlanT::STATUS_NO_PATH
+                | FootstepPlanT::STATUS_START_IN_COLLISION
+                | FootstepPlanT::STATUS_GOAL_IN_COLLISION
+                | FootstepPlanT::STATUS_GOAL_OUTSIDE_MAP
+                | FootstepPlanT::STATUS_BAD_REQUEST
+                | FootstepPlanT::STATUS_TIMEOUT => continue,
+                _ => {}
+            }
+            match plan_of(&msg) {
                 // The world's footsteps in the gait's frame.
                 Ok(mut p) => {
                     for s in &mut p.steps {
                         s.place = self.anchor.to_gait(s.place);
                     }
-                    p
+                    parsed.push(p);
                 }
-                Err(why) => {
-                    refusals.push(why);
-                    continue;
-                }
-            };
+                Err(why) => refusals.push(why),
+            }
+        }
+        let newest = parsed.iter().rposition(|p| Some(p.echo) == wanted);
+        for (i, plan) in parsed.iter().enumerate() {
+            if Some(plan.echo) == wanted && Some(i) != newest {
+                self.superseded += 1;
+                continue;
+            }
             match walker.on_plan(
-                &plan,
+                plan,
                 on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end),
                 &reach,
                 &check,
@@ -994,6 +1238,9 @@ impl GaitApp {
         }
         let standing = walker.standing(t);
         let stopped = walker.is_stopped();
+        if let Some(why) = unreachable {
+            self.drop_goal(format!("the planner cannot reach it: {why}"));
+        }
         self.ask_again |= late;
         self.taken_echo = taken_echo.or(self.taken_echo);
         for why in refusals {
@@ -1068,8 +1315,8 @@ impl GaitApp {
         for m in goals {
             match goal_of(&m) {
                 Some(g) => {
-                    tracing::info!("goal ({:.3}, {:.3})", g.x, g.y);
-                    self.goal_note = format!("walking to ({:.3}, {:.3})", g.x, g.y);
+                    tracing::info!("goal ({}, {})", short(g.x), short(g.y));
+                    self.goal_note = format!("walking to ({}, {})", short(g.x), short(g.y));
                     self.goal = Some(Pursuit {
                         goal: g,
                         step: None,
@@ -1110,8 +1357,8 @@ impl GaitApp {
             if !walker.standing(t) {
                 return Ok(());
             }
-            tracing::info!("goal ({:.3}, {:.3}) reached", p.goal.x, p.goal.y);
-            self.goal_note = format!("goal ({:.3}, {:.3}) reached", p.goal.x, p.goal.y);
+            tracing::info!("goal ({}, {}) reached", short(p.goal.x), short(p.goal.y));
+            self.goal_note = format!("goal ({}, {}) reached", short(p.goal.x), short(p.goal.y));
             self.status.reason = self.goal_note.clone();
             self.status_changed = true;
             self.goal = None;
@@ -1130,9 +1377,26 @@ impl GaitApp {
                 &p.goal,
                 cfg,
             );
+            self.last_request = Some(self.requests);
             node.publisher().publish(&cfg.request_channel, &m)?;
         }
         Ok(())
+    }
+
+    /// Ends the walk to the goal: it is dropped, and the status says why (until a goal is sent
+    /// again).
+    fn drop_goal(&mut self, why: String) {
+        if let Some(p) = self.goal.take() {
+            let note = format!(
+                "goal ({}, {}) dropped: {why}",
+                short(p.goal.x),
+                short(p.goal.y)
+            );
+            tracing::warn!("{note}");
+            self.goal_note = note.clone();
+            self.status.reason = note;
+            self.status_changed = true;
+        }
     }
 
     /// A joint further from the pattern than the tolerance stops the walk.
@@ -1149,19 +1413,14 @@ impl GaitApp {
             .max_by(|a, b| a.0.total_cmp(&b.0));
         if let Some((d, joint)) = worst {
             if d > self.cfg.track_tolerance {
+                // The joints are not where the rows have them: nothing more of the pattern
+                // goes out (the bridges end what they have at rest), and the robot stands up
+                // from where they come to rest after a resume.
                 let why = format!(
                     "{joint} is {d:.3} rad from where the pattern has it (at most {}): stopped",
                     self.cfg.track_tolerance
                 );
-                let stream_end = self.stream_end(t);
-                if let Body::Archie { walker, legs, .. } = &mut self.body {
-                    walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
-                    if let Ok(j) = legs.joints_until(walker.pattern(), f64::INFINITY) {
-                        self.adopt(j, t);
-                    }
-                }
-                node.set_health(NodeStatusT::STATE_DEGRADED, why.clone());
-                self.set_status(TrajectoryStatusT::STATE_STOPPED, why);
+                self.halt(node, t, why, false);
             }
         }
     }
@@ -1186,7 +1445,7 @@ impl GaitApp {
                     continue;
                 };
                 let k = self.group_index(g);
-                let header = self.groups[g].stamper.stamp();
+                let header = self.groups[g].trajectory_stamper.stamp();
                 let m = trajectory_msg(
                     header,
                     &self.groups[g].joints,
@@ -1223,7 +1482,7 @@ impl GaitApp {
                 }
             }
             self.last_set[g] = Some((p.clone(), now));
-            let header = self.groups[g].stamper.stamp();
+            let header = self.groups[g].command_stamper.stamp();
             let m = command_msg(header, &self.groups[g].joints, &p, &v);
             node.publisher().publish(&ch, &m)?;
         }
@@ -1234,8 +1493,7 @@ impl GaitApp {
 impl GaitApp {
     /// Publishes the status when it changed or is due.
     fn publish_status(&mut self, node: &Node, now: Instant) -> anyhow::Result<()> {
-        if self.status_changed || self.status_period.due(now) {
-            self.status_period.next(now);
+        if self.status_pace.take(now, self.status_changed) {
             self.status_changed = false;
             self.status.header = self.status_stamper.stamp();
             node.publisher()
@@ -1268,34 +1526,34 @@ impl Tick for GaitApp {
 
     fn tick(&mut self, node: &Node, now: Instant) -> anyhow::Result<Instant> {
         let t = self.time(now);
+        // The periodic work (set-points) only on the period's ticks: messages tick the gait
+        // too, and a flood of them must not multiply what goes to the drives.
+        let periodic = self.period.due(now);
         for g in &mut self.groups {
             g.take_states(now);
         }
         self.take_imu();
         self.take_odometry();
         self.take_commands(node, t);
-        // A bridge that stopped its drives on its own (not on a stop the gait obeys too)
-        // stops the walk: nothing more goes out.
-        let stopping = match &self.body {
-            Body::Archie { walker, .. } => walker.is_stopped(),
-            Body::Hexapod { .. } => false,
-        };
-        let stopped: Vec<String> = self
+        // A bridge that stopped its drives (an emergency, the system stop, its stream run
+        // dry) stops the walk: nothing more goes out, and the robot stands up again from
+        // where its joints are (at once after a dry stream, else after a resume).
+        let stops: Vec<BridgeStop> = self
             .groups
             .iter_mut()
             .filter_map(|g| g.bridge_stopped())
             .collect();
-        let stopped = stopped.into_iter().next();
-        if let Some(why) = stopped {
-            if !stopping && matches!(self.phase, Phase::Ready | Phase::Posing(_)) {
-                self.fault(node, why);
-            }
+        if !stops.is_empty() {
+            let auto = stops.iter().all(|s| s.dry);
+            let why: Vec<String> = stops.into_iter().map(|s| s.why).collect();
+            self.halt(node, t, why.join("; "), auto);
         }
         match self.phase.clone() {
             Phase::Waiting(since) => self.wait(node, t, now, since),
             Phase::Posing(until) if t >= until => self.ready(node, t),
             Phase::Posing(_) => {}
             Phase::Ready => self.walk(node, t, now),
+            Phase::Halted => self.halted(node, t),
             Phase::Fault(_) => {}
         }
         // A plan taken or refused is said before its first rows go out.
@@ -1309,7 +1567,9 @@ impl Tick for GaitApp {
         }
         self.pursue(node, t)?;
         self.stream(node, t)?;
-        self.set_points(node, t)?;
+        if periodic {
+            self.set_points(node, t)?;
+        }
         if self.counter_period.due(now) {
             self.counter_period.next(now);
             if let Body::Archie { walker, .. } = &self.body {

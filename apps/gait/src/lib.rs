@@ -617,7 +617,7 @@ mod tests {
         );
         let why = w.on_status("left", &status(TrajectoryStatusT::STATE_STOPPED));
         assert_eq!(
-            why.as_deref(),
+            why.map(|s| s.why).as_deref(),
             Some("the left bridge (left-leg) stopped its drives: left_knee ran out of rows while moving")
         );
         assert_eq!(
@@ -630,7 +630,73 @@ mod tests {
         );
         assert!(w
             .on_status("left", &status(TrajectoryStatusT::STATE_STOPPED))
-            .is_some());
+            .is_some_and(|s| !s.dry));
+    }
+
+    /// D4 of the reliability findings: a bridge whose stream ran dry said MOVING, then IDLE,
+    /// and the gait heard of it only from its tracking check. A stop with the bridge's count
+    /// of dry streams gone up is a dry stream: the gait may stand up again by itself.
+    #[test]
+    fn a_stream_run_dry_is_a_stop_the_gait_tells_from_the_others() {
+        let status = |state: i8, stream_stops: i64| TrajectoryStatusT {
+            node: "left-leg".into(),
+            state,
+            stream_stops,
+            reason: "trajectory stream ran dry: left_knee decelerating to a stop".into(),
+            ..Default::default()
+        };
+        let mut w = BridgeWatch::default();
+        assert!(w
+            .on_status("left", &status(TrajectoryStatusT::STATE_MOVING, 0))
+            .is_none());
+        let stop = w
+            .on_status("left", &status(TrajectoryStatusT::STATE_STOPPED, 1))
+            .unwrap();
+        assert!(stop.dry && stop.why.contains("ran dry"), "{stop:?}");
+    }
+
+    #[test]
+    fn after_a_stop_the_feet_stand_beside_the_one_that_bears_the_weight() {
+        use stride_gait::swing::SwingConfig;
+        use stride_gait::timeline::{Timeline, TimingConfig};
+        let steps = [
+            stride_gait::timeline::Footstep {
+                number: 1,
+                side: Side::Left,
+                place: [0.2, 0.1, 0.0, 0.0],
+                swing_height: 0.03,
+                duration: 0.0,
+                padding: false,
+            },
+            stride_gait::timeline::Footstep {
+                number: 2,
+                side: Side::Right,
+                place: [0.4, -0.1, 0.0, 0.0],
+                swing_height: 0.03,
+                duration: 0.0,
+                padding: false,
+            },
+        ];
+        let tl = Timeline::new(
+            0.0,
+            [0.0, 0.0],
+            [[0.0, 0.1, 0.0, 0.0], [0.0, -0.1, 0.0, 0.0]],
+            &steps,
+            &[],
+            &TimingConfig::default(),
+            &SwingConfig::default(),
+            true,
+        )
+        .unwrap();
+        let s2 = &tl.steps[1];
+        // The right foot in the air: the left (landed at 0.2) bears the weight.
+        let feet = stand_from(&tl, (s2.lift + s2.land) / 2.0, 0.2);
+        assert_eq!(feet[0], [0.2, 0.1, 0.0, 0.0]);
+        assert!((feet[1][0] - 0.2).abs() < 1e-12 && (feet[1][1] + 0.1).abs() < 1e-12);
+        // Both landed: the right, last, stays.
+        let feet = stand_from(&tl, s2.land + 0.01, 0.2);
+        assert_eq!(feet[1], [0.4, -0.1, 0.0, 0.0]);
+        assert!((feet[0][1] - 0.1).abs() < 1e-12 && (feet[0][0] - 0.4).abs() < 1e-12);
     }
 
     #[test]
@@ -978,15 +1044,19 @@ impl Anchor {
 }
 
 /// The pelvis of a joint plan that starts at `start` (walker time, s) at walker time `t`:
-/// x, y and heading, between its rows; None outside the plan.
+/// x, y and heading, between its rows, held after its last (the robot stands there); None
+/// before the plan.
 pub fn pelvis_at(plan: &stride_gait::archie::JointPlan, start: f64, t: f64) -> Option<[f64; 3]> {
     let i = plan.times.partition_point(|&x| start + x <= t);
-    if i == 0 || i >= plan.times.len() {
+    let planar = |p: &stride_kinematics::math::Pose| [p.p[0], p.p[1], p.r[1][0].atan2(p.r[0][0])];
+    if i == 0 {
         return None;
+    }
+    if i >= plan.times.len() {
+        return plan.pelvis.last().map(planar);
     }
     let (t0, t1) = (start + plan.times[i - 1], start + plan.times[i]);
     let s = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
-    let planar = |p: &stride_kinematics::math::Pose| [p.p[0], p.p[1], p.r[1][0].atan2(p.r[0][0])];
     let (a, b) = (planar(&plan.pelvis[i - 1]), planar(&plan.pelvis[i]));
     Some([
         a[0] + s * (b[0] - a[0]),
@@ -1008,22 +1078,63 @@ pub fn odometry_pelvis(m: &stride_lcmtypes::stride::OdometryT) -> Option<[f64; 3
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct BridgeWatch {
     last: Option<i8>,
+    stream_stops: Option<i64>,
+}
+
+/// A trajectory bridge stopped its drives.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BridgeStop {
+    /// Why, in words (the bridge's node and reason).
+    pub why: String,
+    /// Its stream ran dry (the gait's rows came too late): the joints decelerated to a stop
+    /// within their limits, nothing is wrong with the drives.
+    pub dry: bool,
 }
 
 impl BridgeWatch {
     /// Takes the status of the bridge of joint group `group`: why it stopped its drives, when
     /// this status is the turn to stopped.
-    pub fn on_status(&mut self, group: &str, m: &TrajectoryStatusT) -> Option<String> {
+    pub fn on_status(&mut self, group: &str, m: &TrajectoryStatusT) -> Option<BridgeStop> {
         let stopped = TrajectoryStatusT::STATE_STOPPED;
         let turned = m.state == stopped && self.last != Some(stopped);
+        let dry = self.stream_stops.is_some_and(|n| m.stream_stops > n);
         self.last = Some(m.state);
-        turned.then(|| {
-            format!(
+        self.stream_stops = Some(m.stream_stops);
+        turned.then(|| BridgeStop {
+            why: format!(
                 "the {group} bridge ({}) stopped its drives: {}",
                 m.node, m.reason
-            )
+            ),
+            dry,
         })
     }
+}
+
+/// Where the feet stand once the robot is brought into its standing pose from the walk of
+/// `timeline` at `t` (the drives stopped under it): the foot that bears the weight stays (the
+/// support of the step under way; between steps, the one that landed last), the other comes
+/// beside it, `width` apart.
+pub fn stand_from(timeline: &stride_gait::timeline::Timeline, t: f64, width: f64) -> [Place; 2] {
+    let mut feet = timeline.feet_start;
+    let mut anchor = Side::Left;
+    for s in &timeline.steps {
+        if s.land <= t {
+            feet[s.footstep.side.index()] = s.footstep.place;
+            anchor = s.footstep.side;
+        } else if s.start <= t {
+            anchor = s.footstep.side.other();
+        }
+    }
+    let a = feet[anchor.index()];
+    let side = match anchor {
+        Side::Left => -1.0,
+        Side::Right => 1.0,
+    };
+    let (s, c) = a[3].sin_cos();
+    let beside = [a[0] - s * side * width, a[1] + c * side * width, a[2], a[3]];
+    let mut out = feet;
+    out[anchor.other().index()] = beside;
+    out
 }
 
 /// A goal to walk to.

@@ -279,12 +279,15 @@ pub trait Tick {
     }
 }
 
-/// A fixed rate for [`Tick::tick`]: the next tick a period after the last, a missed one
-/// skipped rather than caught up in a burst.
+/// A fixed rate for [`Tick::tick`]: the next tick a period after the last deadline, a missed
+/// one skipped rather than caught up in a burst. A tick before the deadline (one a message
+/// caused) leaves the deadline where it is: however many messages come, the periodic ticks
+/// keep their time.
 #[derive(Debug, Clone, Copy)]
 pub struct Period {
     period: Duration,
     next: Option<Instant>,
+    missed: u64,
 }
 
 impl Period {
@@ -293,22 +296,94 @@ impl Period {
         Period {
             period: Duration::from_secs_f64(1.0 / rate_hz),
             next: None,
+            missed: 0,
         }
     }
 
-    /// The time of the tick after the one at `now`.
+    /// The period.
+    pub fn period(&self) -> Duration {
+        self.period
+    }
+
+    /// The deadline of the next periodic tick, after a tick at `now`: unchanged before the
+    /// deadline; once it is reached, one period on (from `now` when the tick came a period or
+    /// more late: the ticks in between are skipped and counted, see [`Period::missed`]).
     pub fn next(&mut self, now: Instant) -> Instant {
-        let mut n = self.next.unwrap_or(now) + self.period;
-        if n < now {
-            n = now + self.period;
-        }
+        let n = match self.next {
+            Some(d) if now < d => d,
+            Some(d) => {
+                let n = d + self.period;
+                if n <= now {
+                    let late = now.saturating_duration_since(d).as_nanos();
+                    self.missed += (late / self.period.as_nanos().max(1)) as u64;
+                    now + self.period
+                } else {
+                    n
+                }
+            }
+            None => now + self.period,
+        };
         self.next = Some(n);
         n
     }
 
-    /// True when a tick at `now` is due (the first always is).
+    /// True when a periodic tick is due at `now` (the first always is).
     pub fn due(&self, now: Instant) -> bool {
         self.next.is_none_or(|n| now >= n)
+    }
+
+    /// Periodic ticks skipped so far because the loop came too late for them.
+    pub fn missed(&self) -> u64 {
+        self.missed
+    }
+}
+
+/// The pace of a message sent when something changes (a status): at once, but at most one
+/// every `gap`; a change meanwhile waits for the gap's end (its sender asks again then), so
+/// a flood of changes sends at most one message a gap. Beside it, the message's regular
+/// period.
+#[derive(Debug, Clone, Copy)]
+pub struct Spaced {
+    every: Period,
+    gap: Duration,
+    last: Option<Instant>,
+}
+
+impl Spaced {
+    /// A message every `period`, and on change at most one every `gap`.
+    pub fn new(period: Duration, gap: Duration) -> Spaced {
+        Spaced {
+            every: Period::hz(1.0 / period.as_secs_f64()),
+            gap,
+            last: None,
+        }
+    }
+
+    /// True when the message goes at `now`: its period is due, or it `changed` and the gap
+    /// since the last one has passed. A true answer counts it as sent.
+    pub fn take(&mut self, now: Instant, changed: bool) -> bool {
+        let room = self
+            .last
+            .is_none_or(|at| now.saturating_duration_since(at) >= self.gap);
+        let go = self.every.due(now) || (changed && room);
+        if go {
+            self.last = Some(now);
+            if self.every.due(now) {
+                self.every.next(now);
+            }
+        }
+        go
+    }
+
+    /// When the message may next go: its period's deadline, or (`changed`) a gap after the
+    /// last, whichever comes first.
+    pub fn wake(&self, changed: bool) -> Option<Instant> {
+        let period = self.every.next;
+        let gap = self.last.map(|at| at + self.gap).filter(|_| changed);
+        match (period, gap) {
+            (Some(p), Some(g)) => Some(p.min(g)),
+            (p, g) => p.or(g),
+        }
     }
 }
 
@@ -351,36 +426,112 @@ impl Paced {
     }
 }
 
+/// How the frame judges its loop: the periodic ticks' lateness over a window, and what the
+/// heartbeat says of it.
+#[derive(Debug, Clone)]
+pub(crate) struct LoopWatch {
+    since: Option<Instant>,
+    turns: u64,
+    missed: u64,
+    worst: Duration,
+    note: Option<String>,
+}
+
+impl LoopWatch {
+    /// The window over which lateness is told.
+    pub(crate) const WINDOW: Duration = Duration::from_secs(1);
+
+    pub(crate) fn new() -> LoopWatch {
+        LoopWatch {
+            since: None,
+            turns: 0,
+            missed: 0,
+            worst: Duration::ZERO,
+            note: None,
+        }
+    }
+
+    /// A tick at `now` for the time `due` the app asked for, `interval` after the tick that
+    /// asked: it missed its time when it came more than that interval late. Returns the
+    /// heartbeat's new word on the loop when it changes at the window's end (None inside:
+    /// nothing to say; Some(None): on time again).
+    pub(crate) fn on_tick(
+        &mut self,
+        due: Instant,
+        interval: Duration,
+        now: Instant,
+    ) -> Option<Option<String>> {
+        let since = *self.since.get_or_insert(now);
+        let late = now.saturating_duration_since(due);
+        self.turns += 1;
+        if late > interval.max(Duration::from_millis(1)) {
+            self.missed += 1;
+        }
+        self.worst = self.worst.max(late);
+        let span = now.saturating_duration_since(since);
+        if span < Self::WINDOW {
+            return None;
+        }
+        let note = (self.missed > 0).then(|| {
+            format!(
+                "control loop late: {} of {} turns came a period or more after their time \
+                 (worst {:.0} ms) in the last {:.1} s",
+                self.missed,
+                self.turns,
+                self.worst.as_secs_f64() * 1e3,
+                span.as_secs_f64()
+            )
+        });
+        self.since = Some(now);
+        self.turns = 0;
+        self.missed = 0;
+        self.worst = Duration::ZERO;
+        (note != self.note).then(|| {
+            self.note = note.clone();
+            note
+        })
+    }
+}
+
+/// The most messages handled between two looks at the app's time: a flood faster than the
+/// node can take keeps its periodic ticks coming.
+const MESSAGES_PER_TURN: usize = 1000;
+
 impl Node {
     /// Runs `app` until shutdown (a signal, [`Node::exit_with`], or stdout closed under a
     /// pipe), handling messages between its ticks; then stops it. Marks the node running
     /// first unless the app set another state or said what it is starting on (a launcher
     /// starts what depends on it only once it runs). Returns the exit status asked for.
+    ///
+    /// A tick caused by a message never puts the app's next periodic tick later than it
+    /// was (only earlier, should the app ask). Periodic ticks that come a period or more
+    /// late are told in the heartbeat (DEGRADED, with the figures); a loop that does not come
+    /// round for [`crate::STALL_AFTER`] past its time is told as STALLED while it lasts.
     pub fn run<T: Tick>(&self, mut app: T) -> anyhow::Result<ExitCode> {
         let h = self.health();
         if h.state == stride_lcmtypes::stride::NodeStatusT::STATE_STARTING && h.detail.is_empty() {
             self.set_running();
         }
         let mut wake = Instant::now();
+        let mut asked = Duration::ZERO;
+        let mut watch = LoopWatch::new();
         let mut next_pipe_check = Instant::now();
         let mut result = Ok(());
         while self.running() {
+            self.set_loop_deadline(Some(wake));
             let wait = wake.saturating_duration_since(Instant::now());
             let before = self.lcm().stats().received;
             let got = match self.lcm().handle_timeout(wait) {
-                Ok(true) => self.lcm().handle_pending().map(|_| true),
-                other => other,
+                Ok(true) => self.handle_some(wake),
+                other => other.map(|_| ()),
             };
             // Only a message for one of the app's subscriptions counts: the rest of the
             // bus's traffic (every process on a multicast group receives all of it) does not.
-            let got = got.map(|g| g && self.lcm().stats().received != before);
-            let got = match got {
-                Ok(g) => g,
-                Err(e) => {
-                    result = Err(anyhow::Error::new(e).context("handling LCM"));
-                    break;
-                }
-            };
+            if let Err(e) = got {
+                result = Err(anyhow::Error::new(e).context("handling LCM"));
+                break;
+            }
+            let got = self.lcm().stats().received != before;
             let now = Instant::now();
             if now >= next_pipe_check {
                 next_pipe_check = now + Duration::from_millis(50);
@@ -389,9 +540,22 @@ impl Node {
                     break;
                 }
             }
-            if now >= wake || (got && (T::WAKE_ON_MESSAGE || app.urgent())) {
+            let periodic = now >= wake;
+            if periodic || (got && (T::WAKE_ON_MESSAGE || app.urgent())) {
+                if periodic {
+                    if let Some(note) = watch.on_tick(wake, asked, now) {
+                        self.set_loop_note(note);
+                    }
+                }
                 match app.tick(self, now) {
-                    Ok(w) => wake = w,
+                    Ok(w) => {
+                        // A message's tick may bring the next one forward, never put it off.
+                        let w = if periodic { w } else { w.min(wake) };
+                        if periodic || w < wake {
+                            asked = w.saturating_duration_since(now);
+                        }
+                        wake = w;
+                    }
                     Err(e) => {
                         result = Err(e);
                         break;
@@ -399,11 +563,23 @@ impl Node {
                 }
             }
         }
+        self.set_loop_deadline(None);
         tracing::info!(node = self.name(), "shutting down");
         let stopped = app.stop(self);
         result?;
         stopped?;
         Ok(ExitCode::from(self.exit.load(Ordering::Relaxed)))
+    }
+
+    /// Handles the messages waiting, at most [`MESSAGES_PER_TURN`] and not past `until`
+    /// (one at least).
+    fn handle_some(&self, until: Instant) -> lcm::Result<()> {
+        for _ in 1..MESSAGES_PER_TURN {
+            if Instant::now() >= until || !self.lcm().handle_timeout(Duration::ZERO)? {
+                break;
+            }
+        }
+        Ok(())
     }
 
     /// Ends [`Node::run`] with exit status `code`.
@@ -516,11 +692,86 @@ mod tests {
     #[test]
     fn a_period_skips_missed_ticks() {
         let t0 = Instant::now();
+        let ms = Duration::from_millis;
         let mut p = Period::hz(100.0);
         assert!(p.due(t0));
-        assert_eq!(p.next(t0), t0 + Duration::from_millis(10));
-        assert!(!p.due(t0 + Duration::from_millis(5)));
-        let late = t0 + Duration::from_millis(55);
-        assert_eq!(p.next(late), late + Duration::from_millis(10));
+        assert_eq!(p.next(t0), t0 + ms(10));
+        assert!(!p.due(t0 + ms(5)));
+        // On time: on the grid.
+        assert_eq!(p.next(t0 + ms(11)), t0 + ms(20));
+        let late = t0 + ms(65);
+        assert_eq!(p.next(late), late + ms(10));
+        assert_eq!(p.missed(), 4);
+    }
+
+    /// D1 of the reliability findings: every message-driven tick moved the periodic deadline
+    /// a period on, so a burst of 100 messages silenced a 100 Hz loop for a second.
+    #[test]
+    fn a_burst_of_message_ticks_does_not_move_the_periodic_deadline() {
+        let t0 = Instant::now();
+        let us = Duration::from_micros;
+        let mut p = Period::hz(100.0);
+        let first = p.next(t0);
+        // 100 messages within the first period, each ticking the app.
+        for i in 1..=100 {
+            assert_eq!(p.next(t0 + us(i * 50)), first);
+        }
+        assert!(p.due(first));
+        assert_eq!(p.next(first), first + Duration::from_millis(10));
+        assert_eq!(p.missed(), 0);
+    }
+
+    #[test]
+    fn a_change_driven_message_goes_at_most_once_a_gap() {
+        let t0 = Instant::now();
+        let ms = Duration::from_millis;
+        let mut s = Spaced::new(Duration::from_secs(1), ms(50));
+        assert!(s.take(t0, false), "the first goes");
+        // A change every 10 ms for a second (a figure in a reason changing each tick): 20.
+        let sent = (1..=100).filter(|i| s.take(t0 + ms(i * 10), true)).count();
+        assert_eq!(sent, 20);
+        // Nothing changes: once a period.
+        let quiet = (101..=300)
+            .filter(|i| s.take(t0 + ms(i * 10), false))
+            .count();
+        assert_eq!(quiet, 2);
+    }
+
+    #[test]
+    fn a_loop_whose_ticks_miss_their_period_says_so_and_then_recovers() {
+        let t0 = Instant::now();
+        let ms = Duration::from_millis;
+        let mut w = LoopWatch::new();
+        let period = ms(10);
+        // On time for a second: nothing to say.
+        let mut said = None;
+        for i in 0..=100 {
+            let at = t0 + ms(i * 10);
+            if let Some(n) = w.on_tick(at, period, at + ms(1)) {
+                said = Some(n);
+            }
+        }
+        assert!(said.is_none(), "{said:?}");
+        // Ticks 45 ms late for a second: told, with the figure.
+        let t1 = t0 + ms(1010);
+        let mut said = None;
+        for i in 0..=25 {
+            let due = t1 + ms(i * 40);
+            if let Some(n) = w.on_tick(due, period, due + ms(45)) {
+                said = Some(n);
+            }
+        }
+        let note = said.flatten().expect("late ticks are told");
+        assert!(note.contains("worst 45 ms"), "{note}");
+        // On time again: the word is taken back once a whole window was.
+        let t2 = t1 + ms(1100);
+        let mut said = None;
+        for i in 0..=250 {
+            let at = t2 + ms(i * 10);
+            if let Some(n) = w.on_tick(at, period, at) {
+                said = Some(n);
+            }
+        }
+        assert_eq!(said, Some(None));
     }
 }

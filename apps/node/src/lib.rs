@@ -18,14 +18,14 @@ mod throttle;
 
 pub use app::{
     app_config, check_log_filter, is_broken_pipe, main, stdout_closed, tool, AppConfig, ConfigUse,
-    Launch, NoConfig, NodeCli, Paced, Period, Tick,
+    Launch, NoConfig, NodeCli, Paced, Period, Spaced, Tick,
 };
 pub use config::load_config;
 pub use stamp::Stamper;
 pub use throttle::{Note, Throttle};
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -34,6 +34,10 @@ use lcm::Lcm;
 
 /// Default channel of the heartbeat.
 pub const STATUS_CHANNEL: &str = "STRIDE_STATUS";
+
+/// A node's loop that has not come round for this long past the time its app asked for is
+/// stalled: its heartbeat says STALLED while it lasts.
+pub const STALL_AFTER: Duration = Duration::from_millis(500);
 
 /// Command-line flags every stride executable accepts (flatten them into the app's parser).
 #[derive(Debug, Clone, clap::Args)]
@@ -155,6 +159,39 @@ pub struct Node {
     heartbeat: Option<heartbeat::Heartbeat>,
     started: Instant,
     exit: AtomicU8,
+    /// How the loop keeps its time (see [`LoopState`]).
+    loop_state: Arc<LoopState>,
+}
+
+/// What [`Node::run`] tells the heartbeat of its loop.
+#[derive(Debug, Default)]
+pub(crate) struct LoopState {
+    /// The time the loop waits for, ns after the node's start, plus one (0: no loop runs).
+    deadline: AtomicU64,
+    /// The loop's lateness, in words, while it misses its period.
+    note: Mutex<Option<String>>,
+}
+
+impl LoopState {
+    /// How long the loop has been overdue at `now` (the node started at `started`), when it
+    /// runs and is.
+    pub(crate) fn overdue(&self, started: Instant, now: Instant) -> Option<Duration> {
+        let d = self.deadline.load(Ordering::Relaxed);
+        let since = now.saturating_duration_since(started).as_nanos() as u64 + 1;
+        (d > 0 && since > d).then(|| Duration::from_nanos(since - d))
+    }
+
+    /// The time the loop waits for (None: no loop runs).
+    pub(crate) fn deadline(&self, started: Instant) -> Option<Instant> {
+        match self.deadline.load(Ordering::Relaxed) {
+            0 => None,
+            d => Some(started + Duration::from_nanos(d - 1)),
+        }
+    }
+
+    pub(crate) fn note(&self) -> Option<String> {
+        self.note.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
 }
 
 impl std::fmt::Debug for Node {
@@ -179,11 +216,13 @@ impl Node {
             detail: String::new(),
         }));
         let started = Instant::now();
+        let loop_state = Arc::new(LoopState::default());
         let heartbeat = heartbeat::Heartbeat::spawn(
             lcm.publisher(),
             args.status_channel.clone(),
             name.clone(),
             health.clone(),
+            loop_state.clone(),
             started,
             Duration::from_secs(1),
         )?;
@@ -205,6 +244,7 @@ impl Node {
             heartbeat: Some(heartbeat),
             started,
             exit: AtomicU8::new(0),
+            loop_state,
         })
     }
 
@@ -243,7 +283,30 @@ impl Node {
         }
     }
 
-    /// The state and detail the heartbeat reports.
+    /// The time the loop waits for next (None: it has ended).
+    pub(crate) fn set_loop_deadline(&self, at: Option<Instant>) {
+        let v = at.map_or(0, |t| {
+            t.saturating_duration_since(self.started).as_nanos() as u64 + 1
+        });
+        self.loop_state.deadline.store(v, Ordering::Relaxed);
+    }
+
+    /// What the loop's lateness is, in words (None: on time); a change is published at once.
+    pub(crate) fn set_loop_note(&self, note: Option<String>) {
+        if let Some(n) = &note {
+            tracing::warn!("{n}");
+        }
+        *self
+            .loop_state
+            .note
+            .lock()
+            .unwrap_or_else(|p| p.into_inner()) = note;
+        if let Some(hb) = &self.heartbeat {
+            hb.poke();
+        }
+    }
+
+    /// The state and detail the app set (the heartbeat adds what it knows of the loop).
     pub fn health(&self) -> Health {
         self.health
             .lock()

@@ -42,3 +42,25 @@ pub enum GaitError {
     #[error("{0}")]
     Limit(String),
 }
+
+/// A figure for a message, short whatever its size: three decimals, or three significant
+/// digits and an exponent beyond a million (a refused plan's 1e300 m step is not printed in
+/// 300 digits).
+pub fn short(x: f64) -> String {
+    if x.is_finite() && x.abs() < 1e6 {
+        format!("{x:.3}")
+    } else {
+        format!("{x:.3e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn huge_figures_are_printed_short() {
+        assert_eq!(super::short(0.25), "0.250");
+        assert_eq!(super::short(1e300), "1.000e300");
+        assert_eq!(super::short(-2.5e9), "-2.500e9");
+        assert_eq!(super::short(f64::NAN), "NaN");
+    }
+}

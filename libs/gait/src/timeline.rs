@@ -252,6 +252,16 @@ impl Timeline {
             let rule = timing.step_time(travel);
             let given = durations.get(i).copied().filter(|d| *d > 0.0);
             let dur = given.unwrap_or(if f.duration > 0.0 { f.duration } else { rule });
+            // A step's time sizes the pattern's samples: bounded before any is made.
+            if !(timing.t_min * (1.0 - 1e-9)..=timing.t_max * (1.0 + 1e-9)).contains(&dur) {
+                return Err(GaitError::Plan(format!(
+                    "step {}: a duration of {} s, outside [{}, {}]",
+                    f.number,
+                    crate::short(dur),
+                    timing.t_min,
+                    timing.t_max
+                )));
+            }
             let mut ds = timing.double_support * dur;
             if from_rest && i == 0 {
                 ds = ds.max(timing.start_shift);

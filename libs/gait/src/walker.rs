@@ -255,7 +255,11 @@ impl Walker {
             None => {
                 let done = tl.steps.iter().take_while(|s| s.land <= t).last();
                 StepCounter {
-                    number: done.map_or(self.last_number, |s| s.footstep.number),
+                    // Never below a step already counted (a stand after a refused plan has no
+                    // step of its own).
+                    number: done.map_or(self.last_number, |s| {
+                        s.footstep.number.max(self.last_number)
+                    }),
                     swing: None,
                     phase: 0.0,
                 }
@@ -273,10 +277,21 @@ impl Walker {
     /// from beside (the support foot), each foothold reachable.
     pub fn check(&self, plan: &Plan, feet: [Place; 2], reach: Reach) -> Result<(), String> {
         let c = &self.cfg;
+        let timing = &self.gen.config().timing;
         let mut feet = feet;
         for f in &plan.steps {
             if !finite(f) {
                 return Err(format!("step {}: not a finite footstep", f.number));
+            }
+            // 0: the timing rule's; else within its bounds (a step's time sizes its pattern).
+            if f.duration != 0.0 && !(timing.t_min..=timing.t_max).contains(&f.duration) {
+                return Err(format!(
+                    "step {}: a duration of {} s, outside [{}, {}] (0: the timing rule's)",
+                    f.number,
+                    crate::short(f.duration),
+                    timing.t_min,
+                    timing.t_max
+                ));
             }
             let support = feet[f.side.other().index()];
             // The step in the support foot's frame.
@@ -290,17 +305,24 @@ impl Walker {
             };
             let yaw = wrap(f.place[3] - support[3]);
             let dz = f.place[2] - support[2];
+            let short = crate::short;
             let what = if d[0].abs() > c.max_length {
-                Some(format!("{:.3} m along, at most {}", d[0], c.max_length))
+                Some(format!("{} m along, at most {}", short(d[0]), c.max_length))
             } else if lateral < c.min_width || lateral > c.max_width {
                 Some(format!(
-                    "{lateral:.3} m beside the support foot, outside [{}, {}]",
-                    c.min_width, c.max_width
+                    "{} m beside the support foot, outside [{}, {}]",
+                    short(lateral),
+                    c.min_width,
+                    c.max_width
                 ))
             } else if yaw.abs() > c.max_yaw {
                 Some(format!("a turn of {yaw:.3} rad, at most {}", c.max_yaw))
             } else if dz.abs() > c.max_height {
-                Some(format!("{dz:.3} m up or down, at most {}", c.max_height))
+                Some(format!(
+                    "{} m up or down, at most {}",
+                    short(dz),
+                    c.max_height
+                ))
             } else {
                 None
             };
@@ -370,6 +392,8 @@ impl Walker {
             })
             .unwrap_or(f64::INFINITY);
         joints(&pat, end)?;
+        // The steps landed before the switch stay counted.
+        self.last_number = self.last_number.max(self.counter(start.t).number);
         self.pattern = pat;
         Ok(())
     }
@@ -381,6 +405,16 @@ impl Walker {
     fn previewed_steps(&self) -> usize {
         let c = self.gen.config();
         (c.preview.horizon / c.timing.t_min).ceil() as usize + 1
+    }
+
+    /// The step a plan that comes at `now` must echo to be taken (the step under way at the
+    /// switch); None while stopped. A plan for another step is dropped as late.
+    pub fn wanted_echo(&self, now: f64) -> Option<i64> {
+        if self.stopped {
+            return None;
+        }
+        let (_, start) = self.switch(now);
+        Some(self.counter(start.t).number)
     }
 
     /// Takes a plan that came at `now` (see the module). `feet_reach` checks a foothold;

@@ -357,3 +357,86 @@ fn a_long_plans_pattern_is_made_of_what_can_play_and_what_its_preview_sees() {
     eprintln!("{n} steps made, the COM within {worst:e} m of the whole plan's");
     assert!(worst < 1e-6, "the COM differs by {worst} m");
 }
+
+/// D2 of the reliability findings: a step of 1e9 s was taken and its pattern allocated one
+/// sample per 5 ms (3.2 TB, the gait aborted); 3000 s blocked the gait and stopped the drives.
+/// A step's duration outside [t_min, t_max] (0: the timing rule's) is refused like any
+/// per-step limit, before anything is made of it.
+#[test]
+fn a_step_duration_outside_the_timing_bounds_is_refused_before_any_pattern_is_made() {
+    for bad in [1e9, 3000.0, 30.0, 2.5, 0.5, 1e-6, -1.0] {
+        let mut w = walker();
+        let mut p = plan_from(&w, 0.0, 0, 3, 0);
+        p.steps[0].duration = bad;
+        let legs_never_asked = |_: &Pattern, _: f64| -> Result<(), GaitError> {
+            panic!("a pattern was made of a {bad} s step")
+        };
+        match w.on_plan(&p, 0.0, &ok, &legs_never_asked) {
+            Verdict::Refused(why) => assert!(
+                why.contains("step 1") && why.contains("duration") && why.contains("[1, 2]"),
+                "{why}"
+            ),
+            v => panic!("{bad} s: {v:?}"),
+        }
+        assert!(!why_is_long(&w), "{}", w.note());
+    }
+    // Within the bounds, and 0 (the rule's), a plan is taken.
+    for good in [0.0, 1.0, 1.5, 2.0] {
+        let mut w = walker();
+        let mut p = plan_from(&w, 0.0, 0, 3, 0);
+        p.steps[0].duration = good;
+        assert!(matches!(w.on_plan(&p, 0.0, &ok, &any), Verdict::Taken(1)));
+    }
+}
+
+/// A refusal's figures are short, whatever the plan's numbers (a 1e300 m step was printed in
+/// 300 digits).
+fn why_is_long(w: &Walker) -> bool {
+    w.note().len() > 200
+}
+
+#[test]
+fn a_huge_step_is_refused_in_a_short_line() {
+    let mut w = walker();
+    let mut p = plan_from(&w, 0.0, 0, 3, 0);
+    p.steps[0].place[0] = 1e300;
+    match w.on_plan(&p, 0.0, &ok, &any) {
+        Verdict::Refused(why) => assert!(why.contains("1.000e300 m along"), "{why}"),
+        v => panic!("{v:?}"),
+    }
+    assert!(!why_is_long(&w), "{}", w.note());
+}
+
+/// D5 of the reliability findings: after a 3-step plan was walked, a refused plan stood the
+/// robot on an empty timeline and the counter fell back to the last plan's echo (3 -> 0), so
+/// the plans answering step 3 were dropped as late.
+#[test]
+fn the_step_counter_never_goes_back_after_a_refused_plan() {
+    let mut w = walker();
+    let p = plan_from(&w, 0.0, 0, 3, 0);
+    assert_eq!(w.on_plan(&p, 0.0, &ok, &any), Verdict::Taken(1));
+    // Walk it to its end: in place steps and then the stand after the timeout.
+    let mut t = 0.0;
+    let mut last = 0;
+    while t < 30.0 && !w.standing(t) {
+        w.tick(t, &any);
+        let n = w.counter(t).number;
+        assert!(n >= last, "{last} -> {n} at {t} s");
+        last = n;
+        t += 0.01;
+    }
+    assert!(last >= 3, "{last}");
+    // A bad plan for the step counted: refused, and the counter stays.
+    let mut bad = plan_from(&w, t, last, 3, 0);
+    bad.steps[0].place[0] = f64::NAN;
+    assert!(matches!(w.on_plan(&bad, t, &ok, &any), Verdict::Refused(_)));
+    for k in 0..300 {
+        let at = t + k as f64 * 0.01;
+        assert_eq!(w.counter(at).number, last, "at {at} s");
+    }
+    // A good plan for that step is still taken.
+    let end = w.pattern().timeline.end.max(t);
+    assert_eq!(w.wanted_echo(end), Some(last));
+    let good = plan_from(&w, end, last, 3, 0);
+    assert_eq!(w.on_plan(&good, end, &ok, &any), Verdict::Taken(last + 1));
+}
