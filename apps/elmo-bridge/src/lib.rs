@@ -684,6 +684,7 @@ impl<B: CanBus> Bridge<B> {
             last_refusal: self.last_refusal.clone(),
             last_refused_sequence: self.last_refused,
             last_accepted_sequence: self.last_accepted,
+            dropped: 0,
         }
     }
 

@@ -109,7 +109,8 @@ impl Group {
         if let Some((_, rx)) = &self.states {
             while let Ok(s) = rx.try_recv() {
                 for (i, (n, p)) in s.names.iter().zip(&s.positions).enumerate() {
-                    if p.is_finite() {
+                    // The group's own joints only (a message of other names sizes nothing).
+                    if p.is_finite() && self.joints.contains(n) {
                         // The speed: the bridge's, else the change since the last position
                         // (unknown when both came in one turn).
                         let v = match (s.velocities.get(i), self.measured.get(n)) {
@@ -159,10 +160,11 @@ impl Group {
     /// decelerate from a stop are refused); a joint whose speed is unknown counts as still.
     fn still(&self) -> bool {
         self.states.is_none()
-            || self
-                .joints
-                .iter()
-                .all(|n| self.speeds.get(n).is_none_or(|v| v.is_nan() || v.abs() < STILL_SPEED))
+            || self.joints.iter().all(|n| {
+                self.speeds
+                    .get(n)
+                    .is_none_or(|v| v.is_nan() || v.abs() < STILL_SPEED)
+            })
     }
 }
 
@@ -361,8 +363,6 @@ pub struct GaitApp {
     anchored: bool,
     /// The last plan request sent.
     last_request: Option<i64>,
-    /// Plans not looked at: a newer one for the same step came in the same turn.
-    superseded: u64,
     /// Refusals' log lines, thinned (a flood of bad plans does not flood the log).
     refusal_log: Throttle,
     /// The rows being played, and the index of the last row sent to the trajectory bridges
@@ -393,6 +393,9 @@ pub struct GaitApp {
 
 /// The loop's period while the robot stands with nothing to do.
 const IDLE_TICK: Duration = Duration::from_millis(20);
+
+/// The longest walk one command may ask of the hexapod, m.
+const MAX_WALK: f64 = 20.0;
 
 /// How the gait comes back from a halt, as its status says.
 const HALT_AUTO: &str =
@@ -576,7 +579,6 @@ impl GaitApp {
             restand: None,
             anchored: false,
             last_request: None,
-            superseded: 0,
             refusal_log: Throttle::new(Duration::from_secs(1)),
             rows: stand,
             sent: None,
@@ -842,6 +844,16 @@ impl GaitApp {
                         self.refused(format!(
                             "command {}: the hexapod is not standing ready",
                             c.command
+                        ));
+                        continue;
+                    }
+                    // A walk's length sizes its rows: at most MAX_WALK at a time.
+                    if c.command == GaitCommandT::COMMAND_WALK
+                        && (c.distance.is_nan() || c.distance.abs() > MAX_WALK)
+                    {
+                        self.refused(format!(
+                            "walk: {} m is more than the {MAX_WALK} m a walk command may ask",
+                            short(c.distance)
                         ));
                         continue;
                     }
@@ -1151,7 +1163,7 @@ impl GaitApp {
                 FootstepPlanT::STATUS_OK | FootstepPlanT::STATUS_PARTIAL => {}
                 // A request answered by a newer one's plan: nothing to take.
                 FootstepPlanT::STATUS_SUPERSEDED => {
-                    self.superseded += 1;
+                    self.status.dropped += 1;
                     continue;
                 }
                 // The planner cannot reach the goal from here (beyond its reach, no way
@@ -1164,6 +1176,7 @@ impl GaitApp {
                 | FootstepPlanT::STATUS_BAD_REQUEST
                     if Some(msg.request_id) == self.last_request =>
                 {
+                    self.status.dropped += 1;
                     unreachable = Some(msg.detail.clone());
                     continue;
                 }
@@ -1174,7 +1187,10 @@ impl GaitApp {
                 | FootstepPlanT::STATUS_GOAL_IN_COLLISION
                 | FootstepPlanT::STATUS_GOAL_OUTSIDE_MAP
                 | FootstepPlanT::STATUS_BAD_REQUEST
-                | FootstepPlanT::STATUS_TIMEOUT => continue,
+                | FootstepPlanT::STATUS_TIMEOUT => {
+                    self.status.dropped += 1;
+                    continue;
+                }
                 _ => {}
             }
             match plan_of(&msg) {
@@ -1191,7 +1207,7 @@ impl GaitApp {
         let newest = parsed.iter().rposition(|p| Some(p.echo) == wanted);
         for (i, plan) in parsed.iter().enumerate() {
             if Some(plan.echo) == wanted && Some(i) != newest {
-                self.superseded += 1;
+                self.status.dropped += 1;
                 continue;
             }
             match walker.on_plan(
@@ -1213,10 +1229,12 @@ impl GaitApp {
                 }
                 Verdict::Late { echo, now } => {
                     tracing::debug!("plan for step {echo} came during step {now}: dropped");
+                    self.status.dropped += 1;
                     late |= echo < now;
                 }
                 Verdict::Stopped => {
                     tracing::debug!("plan ignored: stopped");
+                    self.status.dropped += 1;
                 }
             }
         }
@@ -1555,6 +1573,16 @@ impl Tick for GaitApp {
             Phase::Ready => self.walk(node, t, now),
             Phase::Halted => self.halted(node, t),
             Phase::Fault(_) => {}
+        }
+        // Not walking on patterns: plans are not for now (counted, never left to pile up).
+        if self.phase != Phase::Ready {
+            if let Body::Archie { plans, .. } = &self.body {
+                let n = plans.try_iter().count() as i64;
+                if n > 0 {
+                    self.status.dropped += n;
+                    self.status_changed = true;
+                }
+            }
         }
         // A plan taken or refused is said before its first rows go out.
         self.publish_status(node, now)?;

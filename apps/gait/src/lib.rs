@@ -26,6 +26,10 @@ use stride_lcmtypes::stride::{
 /// The period of Archie's joint rows, s (every other 5 ms sample of the pattern).
 pub const ROW_PERIOD: f64 = 0.01;
 
+/// The most steps a footstep plan may hold (the planners' own limit): each is checked
+/// against the legs, so a plan's length sizes the gait's work.
+pub const MAX_PLAN_STEPS: usize = 1000;
+
 /// Which robot the gait drives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -375,10 +379,16 @@ pub fn plan_of(msg: &FootstepPlanT) -> Result<Plan, String> {
             msg.status, msg.detail
         ));
     }
-    if msg.num_steps as usize != msg.steps.len() || msg.num_steps < 0 {
+    if msg.num_steps < 0 || msg.num_steps as usize != msg.steps.len() {
         return Err(format!(
             "num_steps {} for {} steps",
             msg.num_steps,
+            msg.steps.len()
+        ));
+    }
+    if msg.steps.len() > MAX_PLAN_STEPS {
+        return Err(format!(
+            "{} steps, more than the {MAX_PLAN_STEPS} a plan may hold",
             msg.steps.len()
         ));
     }

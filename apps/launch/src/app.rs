@@ -10,7 +10,7 @@ use anyhow::Context;
 use stride_lcmtypes::stride::{
     GaitCommandT, LaunchConsoleT, LaunchOrderT, LaunchStatusT, NodeStatusT, PoseStampedT, PoseT,
 };
-use stride_node::{Launch, NoConfig, Node, NodeArgs, Period, Stamper, Tick};
+use stride_node::{Launch, NoConfig, Node, NodeArgs, Spaced, Stamper, Tick};
 
 use crate::profile::Profile;
 use crate::supervise::{state_word, Note, Supervisor};
@@ -245,7 +245,9 @@ pub fn run(l: Launch<Cli, NoConfig>) -> anyhow::Result<ExitCode> {
                 "stride-launch-{}",
                 host.as_deref().unwrap_or("all")
             ))?;
-            let deputy = Deputy::start(&node, p, host.clone(), log_dir.clone())?;
+            let mut deputy = Deputy::start(&node, p, host.clone(), log_dir.clone())?;
+            // `stride --log-level warn launch ...` reaches the apps (RUST_LOG does by itself).
+            deputy.sup.set_log_level(&l.cli.node.log_level);
             node.run(deputy)
         }
         Command::Status { wait } => status(&l, *wait),
@@ -530,6 +532,8 @@ fn walk(
     subs.push(s);
     let (s, launches) = node.queue::<LaunchStatusT>(STATUS_CHANNEL)?;
     subs.push(s);
+    let (s, beats) = node.queue::<NodeStatusT>(stride_node::STATUS_CHANNEL)?;
+    subs.push(s);
     let mut traj = Vec::new();
     for c in trajectories {
         let (s, r) = node.queue::<JointTrajectoryT>(c)?;
@@ -551,7 +555,9 @@ fn walk(
     let mut w = Walk::default();
     let mut sent_at = None::<Instant>;
     let mut accepted0 = None::<i64>;
-    let reached_text = format!("goal ({:.3}, {:.3}) reached", target[0], target[1]);
+    let goal_text = format!("goal ({}, {})", short(target[0]), short(target[1]));
+    let reached_text = format!("{goal_text} reached");
+    let dropped_text = format!("{goal_text} dropped: ");
     while Instant::now() < deadline
         && !node
             .shutdown_flag()
@@ -565,10 +571,37 @@ fn walk(
             if sent_at.is_some() && m.reason == reached_text {
                 w.reached = true;
             }
-            if sent_at.is_some() && m.state == TrajectoryStatusT::STATE_STOPPED {
-                w.stopped = Some(m.reason.clone());
+            if sent_at.is_some() && m.reason.starts_with(&dropped_text) {
+                w.dropped = Some(m.reason.clone());
             }
-            w.gait = Some(m);
+            if sent_at.is_some() && m.state == TrajectoryStatusT::STATE_STOPPED {
+                w.stopped = Some(if m.recovery.is_empty() {
+                    m.reason.clone()
+                } else {
+                    format!("{} (to go on: {})", m.reason, m.recovery)
+                });
+            }
+            // A restarted gait's counts start afresh: taken is judged against its own.
+            if w.gait.as_ref().is_some_and(|g| m.accepted < g.accepted) {
+                accepted0 = Some(m.accepted.min(accepted0.unwrap_or(0)));
+            }
+            w.gait_status(m);
+        }
+        // The gait's heartbeat: a fault or a stalled loop ends the walk, said as such.
+        let gait_node = w.gait.as_ref().map(|g| g.node.clone());
+        for b in beats.try_iter() {
+            if Some(&b.node) != gait_node.as_ref() {
+                continue;
+            }
+            match b.state {
+                NodeStatusT::STATE_FAULT | NodeStatusT::STATE_STALLED => {
+                    w.fault = Some(format!("{} ({})", b.detail, node_state_word(b.state)))
+                }
+                _ => w.fault = None,
+            }
+        }
+        if w.fault.is_some() && sent_at.is_some_and(|t| t.elapsed() > Duration::from_secs(1)) {
+            break;
         }
         // The goal: once the gait is heard, and again while no plan is taken for 3 s.
         let taken = w
@@ -611,7 +644,7 @@ fn walk(
                 w.tracking.measured(&m);
             }
         }
-        if w.reached || w.stopped.is_some() {
+        if w.reached || w.stopped.is_some() || w.dropped.is_some() {
             // The last reports.
             let until = Instant::now() + Duration::from_millis(300);
             while Instant::now() < until {
@@ -636,6 +669,8 @@ fn walk(
             out,
             "no gait status was heard: is stride-gait running on this bus?"
         )?;
+    } else if sent_at.is_none() {
+        writeln!(out, "the goal was not sent")?;
     }
     Ok(if ok {
         ExitCode::SUCCESS
@@ -664,9 +699,9 @@ fn command(
 }
 
 /// The system stop message.
-pub fn stop_msg(reason: &str) -> GaitCommandT {
+pub fn stop_msg(header: stride_lcmtypes::stride::HeaderT, reason: &str) -> GaitCommandT {
     GaitCommandT {
-        header: Stamper::new("").stamp(),
+        header,
         command: GaitCommandT::COMMAND_STOP,
         reason: reason.to_string(),
         ..Default::default()
@@ -741,8 +776,12 @@ fn status(l: &Launch<Cli, NoConfig>, wait: f64) -> anyhow::Result<ExitCode> {
         for n in others {
             writeln!(
                 out,
-                "  {:<24} on {:<12} pid {:>7} state {} {}",
-                n.node, n.host, n.pid, n.state, n.detail
+                "  {:<24} on {:<12} pid {:>7} {} {}",
+                n.node,
+                n.host,
+                n.pid,
+                node_state_word(n.state),
+                n.detail
             )?;
         }
     }
@@ -751,15 +790,18 @@ fn status(l: &Launch<Cli, NoConfig>, wait: f64) -> anyhow::Result<ExitCode> {
 
 /// A deputy: one host's apps of a profile.
 pub struct Deputy {
-    sup: Supervisor,
+    /// The apps it supervises.
+    pub sup: Supervisor,
     host: Option<String>,
     _subs: Vec<lcm::Subscription>,
     beats: Receiver<NodeStatusT>,
     orders: Receiver<LaunchOrderT>,
     stops: Receiver<GaitCommandT>,
-    status: Period,
+    status: Spaced,
     status_stamp: Stamper,
     console_stamp: Stamper,
+    /// The system stop's headers: one sequence however often it is sent.
+    stop_stamp: Stamper,
     /// The system stop in force (re-sent every second, so a restarted app hears it), and
     /// when it was last sent.
     stop: Option<(String, Instant)>,
@@ -794,8 +836,9 @@ impl Deputy {
             beats,
             orders,
             stops,
-            status: Period::hz(1.0),
+            status: Spaced::new(Duration::from_secs(1), Duration::from_millis(100)),
             status_stamp: Stamper::new(""),
+            stop_stamp: Stamper::new(""),
             console_stamp: Stamper::new(""),
             stop: None,
             changed: true,
@@ -845,7 +888,7 @@ impl Deputy {
             match n {
                 Note::SystemStop(why) => {
                     tracing::error!("system stop: {why}");
-                    p.publish(&ch.stop, &stop_msg(&why))?;
+                    p.publish(&ch.stop, &stop_msg(self.stop_stamp.stamp(), &why))?;
                     self.stop = Some((why, now));
                 }
                 Note::Changed { .. } => self.changed = true,
@@ -854,7 +897,7 @@ impl Deputy {
         if let Some((why, at)) = &mut self.stop {
             if now.saturating_duration_since(*at) >= Duration::from_secs(1) {
                 *at = now;
-                p.publish(&ch.stop, &stop_msg(why))?;
+                p.publish(&ch.stop, &stop_msg(self.stop_stamp.stamp(), why))?;
             }
         }
         // Console lines: tagged on stdout, forwarded per app.
@@ -883,8 +926,7 @@ impl Deputy {
             b.num_lines = b.lines.len() as i32;
             p.publish(&ch.console, &b)?;
         }
-        if self.changed || self.status.due(now) {
-            self.status.next(now);
+        if self.status.take(now, self.changed) {
             self.changed = false;
             let apps = self.sup.report(now);
             let msg = LaunchStatusT {
@@ -899,6 +941,29 @@ impl Deputy {
             p.publish(&ch.status, &msg)?;
         }
         Ok(())
+    }
+}
+
+/// The name of a node's heartbeat state.
+pub fn node_state_word(s: i8) -> &'static str {
+    match s {
+        NodeStatusT::STATE_STARTING => "starting",
+        NodeStatusT::STATE_RUNNING => "running",
+        NodeStatusT::STATE_DEGRADED => "degraded",
+        NodeStatusT::STATE_FAULT => "FAULT",
+        NodeStatusT::STATE_STOPPING => "stopping",
+        NodeStatusT::STATE_STALLED => "STALLED",
+        _ => "?",
+    }
+}
+
+/// A figure, short whatever its size (three decimals, or an exponent beyond a million): as
+/// the gait prints a goal.
+fn short(x: f64) -> String {
+    if x.is_finite() && x.abs() < 1e6 {
+        format!("{x:.3}")
+    } else {
+        format!("{x:.3e}")
     }
 }
 

@@ -20,6 +20,19 @@ pub enum Restart {
     Always,
 }
 
+/// What a launcher does when a critical app's heartbeat says FAULT (it runs, but cannot do its
+/// work: a drive's emergency, a gait that lost its joints' states).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum OnFault {
+    /// The system stop; the app runs on and comes back by itself (a bridge re-arms its
+    /// drives on the next valid trajectory after `stride resume`).
+    #[default]
+    Stop,
+    /// The system stop, and the app is killed and started again by its restart policy.
+    Restart,
+}
+
 /// Whether an app belongs to the simulated or the real robot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -60,9 +73,14 @@ pub struct AppSpec {
     /// More of them with --sim (the fake devices behind a bridge).
     #[serde(default)]
     pub sim_depends: Vec<String>,
-    /// Its death or silence stops the robot (a published system stop).
+    /// Its death or silence stops the robot (a published system stop), as does a stalled
+    /// loop or a fault in its heartbeat.
     #[serde(default)]
     pub critical: bool,
+    /// A critical app's fault: "stop" (the system stop) or "restart" (the system stop, and
+    /// it is started again by its restart policy).
+    #[serde(default)]
+    pub on_fault: OnFault,
     /// Whether it runs with --sim, without, or both.
     #[serde(default)]
     pub sim: SimUse,
@@ -215,6 +233,8 @@ pub struct App {
     pub depends: Vec<String>,
     /// Its death stops the robot.
     pub critical: bool,
+    /// What its fault does.
+    pub on_fault: OnFault,
     /// It publishes heartbeats.
     pub node: bool,
     /// Its shutdown stage.
@@ -385,8 +405,18 @@ impl Profile {
         }
         let mut names = BTreeSet::new();
         for a in &file.app {
-            if a.name.is_empty() || a.name.contains(char::is_whitespace) {
-                return Err(format!("app {:?}: a name without spaces is needed", a.name));
+            // The name is a node's name and a log file's: letters, digits, '-', '_' and '.'
+            // (not first), nothing that leaves --log-dir.
+            let ok = a
+                .name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'));
+            if a.name.is_empty() || a.name.len() > 64 || !ok || a.name.starts_with('.') {
+                return Err(format!(
+                    "app {:?}: a name of letters, digits, '-', '_' and '.' (not first), at \
+                     most 64, is needed",
+                    a.name
+                ));
             }
             if !names.insert(a.name.as_str()) {
                 return Err(format!("app {:?} is named twice", a.name));
@@ -491,6 +521,7 @@ impl Profile {
                 restart: a.restart,
                 depends: a.depends.clone(),
                 critical: a.critical,
+                on_fault: a.on_fault,
                 node: a.node,
                 stage: a.stage,
                 stop_timeout: a.stop_timeout,
@@ -708,5 +739,18 @@ mod tests {
             assert!(e.contains(want), "{e:?} lacks {want:?}");
             assert!(!e.contains('\n'), "{e:?}");
         }
+    }
+
+    /// D11 of the reliability findings: an app named `../../../escaped` started, and its log
+    /// was written three levels outside --log-dir.
+    #[test]
+    fn an_app_name_that_would_leave_the_log_dir_is_refused() {
+        for bad in ["../../../escaped", "a/b", "..", ".hidden", "", "x y", "é"] {
+            let text = format!("{HEAD}[[app]]\nname = {bad:?}\ncommand = \"stride-a\"\n");
+            let e = profile(&text, false).unwrap_err();
+            assert!(e.contains("a name of letters"), "{bad:?}: {e}");
+        }
+        let ok = format!("{HEAD}[[app]]\nname = \"left-leg_2.a\"\ncommand = \"stride-a\"\n");
+        assert!(profile(&ok, false).is_ok());
     }
 }

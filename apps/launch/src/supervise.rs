@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 
 use stride_lcmtypes::stride::{LaunchAppT, LaunchConsoleT, NodeStatusT};
 
-use crate::profile::{App, Backoff, Profile, Restart};
+use crate::profile::{App, Backoff, OnFault, Profile, Restart};
 
 /// A line an app wrote.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -84,6 +84,8 @@ pub struct Supervisor {
     lines_tx: Sender<Line>,
     lines: Receiver<Line>,
     log_dir: Option<PathBuf>,
+    /// The log filter the apps are given (absent: their own default).
+    log_level: Option<String>,
     /// The shutdown under way: the stage being stopped.
     shutdown: Option<u8>,
 }
@@ -178,6 +180,7 @@ pub fn state_word(s: i8) -> &'static str {
         LaunchAppT::STATE_STOPPING => "stopping",
         LaunchAppT::STATE_EXITED => "exited",
         LaunchAppT::STATE_FAILED => "failed",
+        LaunchAppT::STATE_FAULT => "FAULT",
         _ => "?",
     }
 }
@@ -216,8 +219,14 @@ impl Supervisor {
             lines_tx,
             lines,
             log_dir,
+            log_level: None,
             shutdown: None,
         }
+    }
+
+    /// The log filter every app is started with (its own `--log-level` in the profile wins).
+    pub fn set_log_level(&mut self, filter: &str) {
+        self.log_level = Some(filter.to_owned());
     }
 
     /// The profile.
@@ -251,7 +260,7 @@ impl Supervisor {
         lines
     }
 
-    /// True when `name`'s heartbeat is fresh and says RUNNING (an app without heartbeats:
+    /// True when `name`'s heartbeat is fresh and says RUNNING (or DEGRADED: it runs) (an app without heartbeats:
     /// when its process runs here, or when it runs on another host).
     fn ready(&self, name: &str, now: Instant) -> bool {
         let app = self.profile.apps.iter().find(|a| a.name == name);
@@ -263,8 +272,10 @@ impl Supervisor {
         }
         let fresh = Duration::from_secs_f64(self.profile.file.lost_after);
         self.beats.get(name).is_some_and(|b| {
-            b.status.state == NodeStatusT::STATE_RUNNING
-                && now.saturating_duration_since(b.at) < fresh
+            matches!(
+                b.status.state,
+                NodeStatusT::STATE_RUNNING | NodeStatusT::STATE_DEGRADED
+            ) && now.saturating_duration_since(b.at) < fresh
         })
     }
 
@@ -291,10 +302,14 @@ impl Supervisor {
         p: &mut Proc,
         lines: &Sender<Line>,
         log_dir: &Option<PathBuf>,
+        log_level: &Option<String>,
         now: Instant,
     ) -> Result<(), String> {
         let mut c = Command::new(&p.app.program);
         c.args(&p.app.args).env("STRIDE_LCM_URL", &p.app.lcm_url);
+        if let Some(l) = log_level {
+            c.env("STRIDE_LOG_LEVEL", l);
+        }
         match &p.app.local {
             Some(l) => c
                 .env("STRIDE_LOCAL_URL", &l.url)
@@ -458,7 +473,7 @@ impl Supervisor {
             }
             match p.state {
                 LaunchAppT::STATE_WAITING if waiting[k].is_empty() => {
-                    match Self::spawn(p, &self.lines_tx, &self.log_dir, now) {
+                    match Self::spawn(p, &self.lines_tx, &self.log_dir, &self.log_level, now) {
                         Ok(()) => {
                             Self::set(p, LaunchAppT::STATE_STARTING, String::new(), &mut notes)
                         }
@@ -477,7 +492,7 @@ impl Supervisor {
                     p.restarts += 1;
                     p.streak += 1;
                     p.due = None;
-                    match Self::spawn(p, &self.lines_tx, &self.log_dir, now) {
+                    match Self::spawn(p, &self.lines_tx, &self.log_dir, &self.log_level, now) {
                         Ok(()) => Self::set(
                             p,
                             LaunchAppT::STATE_STARTING,
@@ -487,7 +502,10 @@ impl Supervisor {
                         Err(e) => Self::set(p, LaunchAppT::STATE_FAILED, e, &mut notes),
                     }
                 }
-                LaunchAppT::STATE_STARTING | LaunchAppT::STATE_RUNNING | LaunchAppT::STATE_LOST => {
+                LaunchAppT::STATE_STARTING
+                | LaunchAppT::STATE_RUNNING
+                | LaunchAppT::STATE_LOST
+                | LaunchAppT::STATE_FAULT => {
                     let started = p.started.unwrap_or(now);
                     if !p.app.node {
                         Self::set(p, LaunchAppT::STATE_RUNNING, String::new(), &mut notes);
@@ -498,20 +516,24 @@ impl Supervisor {
                         Some(b) => now.saturating_duration_since(b.at) > lost_after,
                         None => now.saturating_duration_since(started) > lost_after * 3,
                     };
-                    if silent {
+                    // A loop that does not come round is as good as silent, whatever its
+                    // heartbeat thread still says.
+                    let stalled = beat
+                        .filter(|b| !silent && b.status.state == NodeStatusT::STATE_STALLED)
+                        .map(|b| b.status.detail.clone());
+                    if silent || stalled.is_some() {
                         if p.state != LaunchAppT::STATE_LOST {
+                            let how = stalled.unwrap_or_else(|| {
+                                format!("no heartbeat for {:.0} s", lost_after.as_secs_f64())
+                            });
                             if p.app.critical {
                                 notes.push(Note::SystemStop(format!(
-                                    "critical app {} is silent",
-                                    p.app.name
+                                    "critical app {} is {}",
+                                    p.app.name,
+                                    if silent { "silent" } else { "stalled" }
                                 )));
                             }
-                            Self::set(
-                                p,
-                                LaunchAppT::STATE_LOST,
-                                format!("no heartbeat for {:.0} s", lost_after.as_secs_f64()),
-                                &mut notes,
-                            );
+                            Self::set(p, LaunchAppT::STATE_LOST, how, &mut notes);
                             if p.app.restart != Restart::Never {
                                 // Killed: its exit restarts it by the policy.
                                 if let Some(c) = &p.child {
@@ -520,13 +542,30 @@ impl Supervisor {
                             }
                         }
                     } else if let Some(b) = beat {
-                        let state = if b.status.state == NodeStatusT::STATE_RUNNING
-                            || b.status.state == NodeStatusT::STATE_DEGRADED
-                        {
-                            LaunchAppT::STATE_RUNNING
-                        } else {
-                            LaunchAppT::STATE_STARTING
+                        let state = match b.status.state {
+                            NodeStatusT::STATE_RUNNING | NodeStatusT::STATE_DEGRADED => {
+                                LaunchAppT::STATE_RUNNING
+                            }
+                            NodeStatusT::STATE_FAULT => LaunchAppT::STATE_FAULT,
+                            _ => LaunchAppT::STATE_STARTING,
                         };
+                        // A critical app that turns to a fault: the system stop, and a
+                        // restart when its profile asks for one.
+                        if state == LaunchAppT::STATE_FAULT
+                            && p.state != LaunchAppT::STATE_FAULT
+                            && p.app.critical
+                        {
+                            notes.push(Note::SystemStop(format!(
+                                "critical app {} reports a fault: {}",
+                                p.app.name, b.status.detail
+                            )));
+                            if p.app.on_fault == OnFault::Restart && p.app.restart != Restart::Never
+                            {
+                                if let Some(c) = &p.child {
+                                    signal_group(c.id(), libc::SIGKILL);
+                                }
+                            }
+                        }
                         Self::set(p, state, b.status.detail.clone(), &mut notes);
                     }
                 }
@@ -903,6 +942,105 @@ mod tests {
             state(&sup, "stubborn").2.contains("signal 9"),
             "{:?}",
             state(&sup, "stubborn")
+        );
+    }
+
+    /// D6 of the reliability findings: `stride status` showed a node in FAULT as "starting",
+    /// and a critical app in FAULT was neither restarted nor a system stop. A loop that stalls
+    /// (its heartbeat thread beating on) is as good as silent.
+    #[test]
+    fn a_critical_apps_fault_or_stalled_loop_stops_the_robot_as_its_profile_asks() {
+        let dir = tempfile::tempdir().unwrap();
+        let quiet = dir.path().join("quiet.sh");
+        std::fs::write(&quiet, "#!/bin/sh\nsleep 30\n").unwrap();
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&quiet, std::fs::Permissions::from_mode(0o755)).unwrap();
+        let mut sup = Supervisor::new(
+            profile(&format!(
+                "[[app]]\nname = \"bridge\"\ncommand = \"{q}\"\ncritical = true\n\
+                 [[app]]\nname = \"gait\"\ncommand = \"{q}\"\ncritical = true\n\
+                 on_fault = \"restart\"\n\
+                 [[app]]\nname = \"planner\"\ncommand = \"{q}\"\ncritical = true\n",
+                q = quiet.display()
+            )),
+            None,
+            None,
+        );
+        let beat = |sup: &mut Supervisor, node: &str, state: i8, detail: &str| {
+            sup.heartbeat(
+                NodeStatusT {
+                    node: node.into(),
+                    state,
+                    detail: detail.into(),
+                    ..Default::default()
+                },
+                Instant::now(),
+            );
+        };
+        let mut notes = Vec::new();
+        for _ in 0..20 {
+            for n in ["bridge", "gait", "planner"] {
+                beat(&mut sup, n, NodeStatusT::STATE_RUNNING, "");
+            }
+            notes.extend(sup.step(Instant::now()));
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert_eq!(state(&sup, "bridge").0, LaunchAppT::STATE_RUNNING);
+        assert!(!notes.iter().any(|n| matches!(n, Note::SystemStop(_))));
+        beat(
+            &mut sup,
+            "bridge",
+            NodeStatusT::STATE_FAULT,
+            "left_knee: emergency",
+        );
+        beat(
+            &mut sup,
+            "gait",
+            NodeStatusT::STATE_FAULT,
+            "no joint states",
+        );
+        beat(
+            &mut sup,
+            "planner",
+            NodeStatusT::STATE_STALLED,
+            "control loop stalled: no turn for 0.6 s past its time",
+        );
+        let notes = sup.step(Instant::now());
+        let stops: Vec<&String> = notes
+            .iter()
+            .filter_map(|n| match n {
+                Note::SystemStop(w) => Some(w),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(stops.len(), 3, "{notes:?}");
+        assert!(stops
+            .iter()
+            .any(|w| w.contains("bridge reports a fault: left_knee")));
+        assert!(stops.iter().any(|w| w.contains("planner is stalled")));
+        // Shown as FAULT, and the word says so.
+        assert_eq!(state(&sup, "bridge").0, LaunchAppT::STATE_FAULT);
+        assert_eq!(state_word(LaunchAppT::STATE_FAULT), "FAULT");
+        let (st, _, detail) = state(&sup, "planner");
+        assert_eq!(st, LaunchAppT::STATE_LOST);
+        assert!(detail.contains("stalled"), "{detail}");
+        // The gait asked for a restart: it is killed and comes back; the bridge runs on.
+        let notes = run(&mut sup, 5.0, |s| state(s, "gait").1 == 1);
+        assert_eq!(state(&sup, "gait").1, 1, "{notes:?}");
+        assert_eq!(state(&sup, "bridge").1, 0);
+        // The fault is told once, not at every beat that repeats it.
+        beat(
+            &mut sup,
+            "bridge",
+            NodeStatusT::STATE_FAULT,
+            "left_knee: emergency",
+        );
+        let again = sup.step(Instant::now());
+        assert!(
+            !again
+                .iter()
+                .any(|n| matches!(n, Note::SystemStop(w) if w.contains("bridge"))),
+            "{again:?}"
         );
     }
 }

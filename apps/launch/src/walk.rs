@@ -114,8 +114,12 @@ impl Tracking {
 /// What was seen of a walk.
 #[derive(Debug, Default)]
 pub struct Walk {
-    /// The first and last step numbers.
+    /// The first and last step numbers of the gait now running.
     pub steps: Option<(i64, i64)>,
+    /// Steps walked under gaits that ended before it (a restart starts the count afresh).
+    pub steps_before: i64,
+    /// Plans taken and refused by gaits that ended before the one now running.
+    pub plans_before: (i64, i64),
     /// The gait said it reached the goal.
     pub reached: bool,
     /// The gait's last status.
@@ -130,15 +134,42 @@ pub struct Walk {
     pub cpu: BTreeMap<String, (f64, u32)>,
     /// Why the gait stopped the walk, if it did.
     pub stopped: Option<String>,
+    /// Why the gait ended the walk to the goal without reaching it (the planner cannot reach
+    /// it), if it did.
+    pub dropped: Option<String>,
+    /// The gait's fault, from its heartbeat (FAULT, or a stalled loop), if it reported one.
+    pub fault: Option<String>,
 }
 
 impl Walk {
-    /// Takes a step counter.
+    /// Takes a step counter. One that goes back is a new gait's (restarted): the steps of
+    /// the one before stay counted.
     pub fn counter(&mut self, c: &StepCounterT) {
         self.steps = Some(match self.steps {
             None => (c.step_number, c.step_number),
+            Some((a, b)) if c.step_number < b => {
+                self.steps_before += b - a;
+                (c.step_number, c.step_number)
+            }
             Some((a, _)) => (a, c.step_number),
         });
+    }
+
+    /// Takes the gait's status. Counts that go back are a new gait's (restarted): the plans
+    /// of the one before stay counted.
+    pub fn gait_status(&mut self, m: TrajectoryStatusT) {
+        if let Some(g) = &self.gait {
+            if m.accepted < g.accepted || m.refused < g.refused {
+                self.plans_before.0 += g.accepted;
+                self.plans_before.1 += g.refused;
+            }
+        }
+        self.gait = Some(m);
+    }
+
+    /// The steps walked, over every gait that ran.
+    pub fn steps_walked(&self) -> i64 {
+        self.steps_before + self.steps.map_or(0, |(a, b)| b - a)
     }
 
     /// Takes a deputy's report.
@@ -157,7 +188,7 @@ impl Walk {
     pub fn summary(&self, goal: [f64; 2], tolerance: f64, secs: f64) -> (Vec<String>, bool) {
         let mut lines = Vec::new();
         let mut ok = self.reached;
-        let steps = self.steps.map_or(0, |(a, b)| b - a);
+        let steps = self.steps_walked();
         lines.push(format!(
             "goal ({:.3}, {:.3}): {} after {secs:.1} s, {steps} steps",
             goal[0],
@@ -168,9 +199,17 @@ impl Walk {
                 "NOT reached"
             },
         ));
+        if let Some(why) = &self.dropped {
+            ok = false;
+            lines.push(format!("the walk ended: {why}"));
+        }
         if let Some(why) = &self.stopped {
             ok = false;
             lines.push(format!("the gait stopped the walk: {why}"));
+        }
+        if let Some(why) = &self.fault {
+            ok = false;
+            lines.push(format!("the gait reports a fault: {why}"));
         }
         // Where the robot stands: the centre of its feet (the simulated world's truth).
         let at = match (&self.report, &self.pose) {
@@ -220,8 +259,8 @@ impl Walk {
         if let Some(g) = &self.gait {
             lines.push(format!(
                 "plans taken by the gait {}, refused {}{}",
-                g.accepted,
-                g.refused,
+                g.accepted + self.plans_before.0,
+                g.refused + self.plans_before.1,
                 if g.refused > 0 {
                     format!(" (last: {})", g.last_refusal)
                 } else {

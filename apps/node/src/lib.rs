@@ -69,8 +69,14 @@ pub struct NodeArgs {
     pub config: Option<PathBuf>,
 
     /// Log filter: error, warn, info, debug, trace, or a tracing directive such as
-    /// `info,lcm=debug`. RUST_LOG, when set, takes precedence.
-    #[arg(long, default_value = "info", value_name = "FILTER")]
+    /// `info,lcm=debug`. RUST_LOG, when set, takes precedence. A launcher passes its own to
+    /// the apps it starts.
+    #[arg(
+        long,
+        env = "STRIDE_LOG_LEVEL",
+        default_value = "info",
+        value_name = "FILTER"
+    )]
     pub log_level: String,
 
     /// Node name in logs and heartbeats (default: the app's name). Must be unique on the bus.

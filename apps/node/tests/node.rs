@@ -26,8 +26,11 @@ fn heartbeat_reports_state_and_counters_then_stopping() {
         .unwrap();
     node.set_health(NodeStatusT::STATE_DEGRADED, "one sensor missing");
     // Wait for a DEGRADED beat after the first one (which may have gone out before).
-    let later_degraded =
-        |m: &NodeStatusT| m.state == NodeStatusT::STATE_DEGRADED && m.header.sequence >= 1;
+    let first = std::sync::OnceLock::new();
+    let later_degraded = |m: &NodeStatusT| {
+        let first = *first.get_or_init(|| m.header.sequence);
+        m.state == NodeStatusT::STATE_DEGRADED && m.header.sequence > first
+    };
     let deadline = Instant::now() + Duration::from_secs(5);
     while Instant::now() < deadline && !got.lock().unwrap().iter().any(later_degraded) {
         node.lcm()

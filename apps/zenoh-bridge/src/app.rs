@@ -30,6 +30,43 @@ pub struct Cli {
 
 stride_node::node_cli!(Cli);
 
+impl Cli {
+    /// The configuration file given (its folder is where relative paths start).
+    pub fn config_file(&self) -> Option<&std::path::Path> {
+        self.node.config.as_deref()
+    }
+
+    /// Zenoh's own warnings held back (unless RUST_LOG or the filter speaks of zenoh): what
+    /// they say comes as the bridge's one-line error or its heartbeat.
+    pub fn quiet_zenoh(&mut self) {
+        if !self.node.log_level.contains("zenoh") {
+            self.node.log_level.push_str(",zenoh=error");
+        }
+    }
+}
+
+/// A Zenoh error in one line, without the places in Zenoh's sources it names (" at
+/// /…/src/tcp.rs:61.").
+pub fn one_line(e: impl std::fmt::Display) -> String {
+    let text = e.to_string().replace('\n', " ");
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text.as_str();
+    while let Some(i) = rest.find(" at ") {
+        out.push_str(&rest[..i]);
+        let after = &rest[i + 4..];
+        let end = after.find(char::is_whitespace).unwrap_or(after.len());
+        let word = &after[..end];
+        if word.contains(".rs:") {
+            rest = &after[end..];
+        } else {
+            out.push_str(" at ");
+            rest = after;
+        }
+    }
+    out.push_str(rest);
+    out.trim().trim_end_matches('.').to_owned()
+}
+
 impl AppConfig for BridgeConfig {
     const USE: ConfigUse = ConfigUse::Required(
         "the bus's name, the Zenoh endpoints and the channels; see config/zenoh-bridge-robot.toml",
@@ -65,6 +102,10 @@ pub struct Bridge {
     state: Arc<Mutex<State>>,
     last: Counters,
     next_log: Instant,
+    /// Where it listens and connects, in words.
+    endpoints: String,
+    /// Whether it was last connected to no peer (None: not looked at yet).
+    alone: Option<bool>,
 }
 
 fn json_str(s: &str) -> String {
@@ -75,16 +116,63 @@ fn json_list(v: &[String]) -> String {
     serde_json::to_string(v).unwrap_or_default()
 }
 
-/// The Zenoh configuration of `cfg`: its mode and endpoints, multicast scouting off.
+/// The Zenoh configuration of `cfg` (its paths already relative to where it runs): its mode
+/// and endpoints, TLS both ways and the users, multicast scouting off.
 pub fn zenoh_config(cfg: &BridgeConfig) -> anyhow::Result<zenoh::Config> {
     let mut z = zenoh::Config::default();
     let set = |z: &mut zenoh::Config, key: &str, value: String| {
         z.insert_json5(key, &value)
-            .map_err(|e| anyhow::anyhow!("zenoh configuration {key} = {value}: {e}"))
+            .map_err(|e| anyhow::anyhow!("zenoh configuration {key}: {}", one_line(e)))
     };
     set(&mut z, "mode", json_str(&cfg.zenoh.mode))?;
     set(&mut z, "listen/endpoints", json_list(&cfg.zenoh.listen))?;
     set(&mut z, "connect/endpoints", json_list(&cfg.zenoh.connect))?;
+    let file = |p: &std::path::Path, what: &str| -> anyhow::Result<String> {
+        if !p.is_file() {
+            anyhow::bail!("{what} {} not found", p.display());
+        }
+        Ok(json_str(&p.to_string_lossy()))
+    };
+    if let Some(t) = &cfg.zenoh.tls {
+        let (ca, cert, key) = (
+            file(&t.ca, "zenoh.tls.ca")?,
+            file(&t.certificate, "zenoh.tls.certificate")?,
+            file(&t.key, "zenoh.tls.key")?,
+        );
+        let tls = "transport/link/tls";
+        set(&mut z, &format!("{tls}/root_ca_certificate"), ca)?;
+        set(&mut z, &format!("{tls}/listen_certificate"), cert.clone())?;
+        set(&mut z, &format!("{tls}/listen_private_key"), key.clone())?;
+        set(&mut z, &format!("{tls}/connect_certificate"), cert)?;
+        set(&mut z, &format!("{tls}/connect_private_key"), key)?;
+        // Mutual: a peer without a certificate of the authority is not let in.
+        set(&mut z, &format!("{tls}/enable_mtls"), "true".into())?;
+        set(
+            &mut z,
+            &format!("{tls}/verify_name_on_connect"),
+            t.verify_name.to_string(),
+        )?;
+    }
+    if let Some(a) = &cfg.zenoh.auth {
+        let auth = "transport/auth/usrpwd";
+        if let (Some(user), Some(pw)) = (&a.user, &a.password_file) {
+            let text = std::fs::read_to_string(pw)
+                .map_err(|e| anyhow::anyhow!("zenoh.auth.password_file {}: {e}", pw.display()))?;
+            let password = text.lines().next().unwrap_or("").trim().to_owned();
+            if password.is_empty() {
+                anyhow::bail!("zenoh.auth.password_file {}: no password", pw.display());
+            }
+            set(&mut z, &format!("{auth}/user"), json_str(user))?;
+            set(&mut z, &format!("{auth}/password"), json_str(&password))?;
+        }
+        if let Some(users) = &a.users_file {
+            set(
+                &mut z,
+                &format!("{auth}/dictionary_file"),
+                file(users, "zenoh.auth.users_file")?,
+            )?;
+        }
+    }
     set(&mut z, "scouting/multicast/enabled", "false".into())?;
     // Nothing is scouted: the session need not wait for it (a bridge that listens starts
     // before the others connect).
@@ -97,11 +185,19 @@ pub fn zenoh_config(cfg: &BridgeConfig) -> anyhow::Result<zenoh::Config> {
 }
 
 impl Bridge {
-    /// Opens the Zenoh session and joins both sides.
-    pub fn start(node: &Node, cfg: BridgeConfig) -> anyhow::Result<Bridge> {
+    /// Opens the Zenoh session and joins both sides; `config_file` is where the
+    /// configuration came from (its relative paths start in its folder).
+    pub fn start(
+        node: &Node,
+        mut cfg: BridgeConfig,
+        config_file: Option<&std::path::Path>,
+    ) -> anyhow::Result<Bridge> {
+        if let Some(dir) = config_file.and_then(std::path::Path::parent) {
+            cfg.rebase(dir);
+        }
         let session = zenoh::open(zenoh_config(&cfg)?)
             .wait()
-            .map_err(|e| anyhow::anyhow!("opening the Zenoh session: {e}"))?;
+            .map_err(|e| anyhow::anyhow!("opening the Zenoh session: {}", one_line(e)))?;
         let state = Arc::new(Mutex::new(State {
             outgoing: Outgoing::new(&cfg.out).map_err(anyhow::Error::msg)?,
             echoes: Echoes::new(ECHO_MEMORY),
@@ -147,7 +243,9 @@ impl Bridge {
                 }
             })
             .wait()
-            .map_err(|e| anyhow::anyhow!("subscribing to {}/** on Zenoh: {e}", cfg.prefix))?;
+            .map_err(|e| {
+                anyhow::anyhow!("subscribing to {}/** on Zenoh: {}", cfg.prefix, one_line(e))
+            })?;
 
         // Out: what this bus says, to the others.
         let (st, z, prefix) = (state.clone(), session.clone(), cfg.prefix.clone());
@@ -232,6 +330,11 @@ impl Bridge {
             state,
             last: Counters::default(),
             next_log: Instant::now() + Duration::from_secs(10),
+            endpoints: format!(
+                "listening on {:?}, connecting to {:?}",
+                cfg.zenoh.listen, cfg.zenoh.connect
+            ),
+            alone: None,
         })
     }
 
@@ -246,12 +349,29 @@ impl Tick for Bridge {
 
     fn tick(&mut self, node: &Node, now: Instant) -> anyhow::Result<Instant> {
         let c = self.counters();
-        let state = if c.errors > self.last.errors {
-            NodeStatusT::STATE_DEGRADED
+        // A link down looks like an idle one in the counters: the peers say which.
+        let peers = self.session.info().peers_zid().wait().count()
+            + self.session.info().routers_zid().wait().count();
+        let alone = peers == 0;
+        if self.alone != Some(alone) {
+            if alone {
+                tracing::warn!("connected to no peer ({})", self.endpoints);
+            } else {
+                tracing::info!("connected to {peers} peer(s)");
+            }
+            self.alone = Some(alone);
+        }
+        let (state, detail) = if alone {
+            (
+                NodeStatusT::STATE_DEGRADED,
+                format!("connected to no peer ({}); {c}", self.endpoints),
+            )
+        } else if c.errors > self.last.errors {
+            (NodeStatusT::STATE_DEGRADED, c.to_string())
         } else {
-            NodeStatusT::STATE_RUNNING
+            (NodeStatusT::STATE_RUNNING, c.to_string())
         };
-        node.set_health(state, c.to_string());
+        node.set_health(state, detail);
         if now >= self.next_log {
             tracing::info!("{c}");
             self.next_log = now + Duration::from_secs(10);
@@ -267,6 +387,25 @@ impl Tick for Bridge {
         self.session
             .close()
             .wait()
-            .map_err(|e| anyhow::anyhow!("closing the Zenoh session: {e}"))
+            .map_err(|e| anyhow::anyhow!("closing the Zenoh session: {}", one_line(e)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::one_line;
+
+    /// D13 of the reliability findings: Zenoh's errors carried the build machine's paths.
+    #[test]
+    fn a_zenoh_error_is_one_line_without_source_paths() {
+        let e = "Can not create a new TCP listener bound to tcp/127.0.0.1:7447: Address \
+                 already in use (os error 98) at /root/.cargo/registry/src/index.crates.io-19/\
+                 zenoh-link-commons-1.10.2/src/tcp.rs:61.";
+        assert_eq!(
+            one_line(e),
+            "Can not create a new TCP listener bound to tcp/127.0.0.1:7447: Address already \
+             in use (os error 98)"
+        );
+        assert_eq!(one_line("look at the\nport"), "look at the port");
     }
 }

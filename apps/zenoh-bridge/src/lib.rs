@@ -10,6 +10,7 @@
 
 use std::collections::{HashMap, VecDeque};
 use std::hash::{Hash, Hasher};
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use regex::Regex;
@@ -36,8 +37,9 @@ pub struct BridgeConfig {
     /// decides its rate; a channel no rule matches stays.
     #[serde(default)]
     pub out: Vec<ChannelRule>,
-    /// The channels taken in from the other buses (anchored regular expressions).
-    #[serde(default = "everything", rename = "in")]
+    /// The channels taken in from the other buses (anchored regular expressions): nothing
+    /// unless named (the link is a door into the robot's bus).
+    #[serde(default, rename = "in")]
     pub inbound: Vec<String>,
 }
 
@@ -45,24 +47,85 @@ fn prefix() -> String {
     "lcm".into()
 }
 
-fn everything() -> Vec<String> {
-    vec![".*".into()]
-}
-
-/// The Zenoh session: a peer that listens and connects where it is told (TCP), with
-/// multicast scouting off (a bridge is for where multicast does not pass).
+/// The Zenoh session: a peer that listens and connects where it is told, with multicast
+/// scouting off (a bridge is for where multicast does not pass). Beyond this computer's
+/// loopback, only over TLS with certificates both ways, unless `insecure` says otherwise.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ZenohConfig {
     /// "peer" or "client" (a client needs a router, e.g. zenohd, to connect to).
     #[serde(default = "peer")]
     pub mode: String,
-    /// Endpoints to listen on, e.g. "tcp/0.0.0.0:7447".
+    /// Endpoints to listen on, e.g. "tls/0.0.0.0:7447".
     #[serde(default)]
     pub listen: Vec<String>,
-    /// Endpoints to connect to, e.g. "tcp/10.0.1.5:7447".
+    /// Endpoints to connect to, e.g. "tls/10.0.1.5:7447".
     #[serde(default)]
     pub connect: Vec<String>,
+    /// Plain TCP beyond the loopback, which anyone who reaches the port may join and publish
+    /// goals, plans and stops through: refused unless this says `true` in so many words.
+    #[serde(default)]
+    pub insecure: bool,
+    /// TLS, mutual: each side shows a certificate the other's authority signed.
+    #[serde(default)]
+    pub tls: Option<TlsConfig>,
+    /// User and password, checked by the side that listens.
+    #[serde(default)]
+    pub auth: Option<AuthConfig>,
+}
+
+/// The bridge's TLS identity and the authority it trusts (PEM files, relative to the
+/// configuration file's folder): `tls/` endpoints need it.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TlsConfig {
+    /// The certificate of the authority that signed both sides' certificates.
+    pub ca: PathBuf,
+    /// This bridge's certificate (shown when it listens and when it connects).
+    pub certificate: PathBuf,
+    /// Its private key.
+    pub key: PathBuf,
+    /// A connecting bridge checks that the peer's certificate names the address it
+    /// connects to (its subjectAltName).
+    #[serde(default = "yes")]
+    pub verify_name: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// Zenoh's user and password authentication (files relative to the configuration file's
+/// folder; no password in the configuration itself).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AuthConfig {
+    /// The user this bridge connects as.
+    #[serde(default)]
+    pub user: Option<String>,
+    /// A file whose first line is its password.
+    #[serde(default)]
+    pub password_file: Option<PathBuf>,
+    /// Who may connect to this bridge: a file of `user:password` lines.
+    #[serde(default)]
+    pub users_file: Option<PathBuf>,
+}
+
+/// Whether an endpoint's address stays on this computer (127.0.0.0/8, ::1, localhost).
+pub fn is_loopback(endpoint: &str) -> bool {
+    let Some((_, addr)) = endpoint.split_once('/') else {
+        return false;
+    };
+    // Options after '#' or '?'.
+    let addr = addr.split(['#', '?']).next().unwrap_or("");
+    let host = match addr.rsplit_once(':') {
+        Some((h, _)) => h.trim_start_matches('[').trim_end_matches(']'),
+        None => addr,
+    };
+    host == "localhost"
+        || host
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback())
 }
 
 fn peer() -> String {
@@ -75,6 +138,9 @@ impl Default for ZenohConfig {
             mode: peer(),
             listen: Vec::new(),
             connect: Vec::new(),
+            insecure: false,
+            tls: None,
+            auth: None,
         }
     }
 }
@@ -142,13 +208,65 @@ impl BridgeConfig {
             );
         }
         for e in self.zenoh.listen.iter().chain(&self.zenoh.connect) {
-            if !e.contains('/') {
+            let Some((proto, _)) = e.split_once('/') else {
                 return Err(format!(
-                    "zenoh endpoint {e:?}: PROTOCOL/ADDRESS:PORT, e.g. tcp/10.0.1.5:7447"
+                    "zenoh endpoint {e:?}: PROTOCOL/ADDRESS:PORT, e.g. tls/10.0.1.5:7447"
                 ));
+            };
+            match proto {
+                "tls" if self.zenoh.tls.is_none() => {
+                    return Err(format!(
+                        "zenoh endpoint {e:?}: TLS needs [zenoh.tls] (ca, certificate, key)"
+                    ))
+                }
+                "tls" => {}
+                "tcp" if is_loopback(e) || self.zenoh.insecure => {}
+                "tcp" => {
+                    return Err(format!(
+                        "zenoh endpoint {e:?} is plain TCP beyond this computer: anyone who \
+                         reaches it may join the robot's bus; use tls/ with [zenoh.tls] (see \
+                         the README), or say insecure = true in [zenoh]"
+                    ))
+                }
+                other => {
+                    return Err(format!(
+                        "zenoh endpoint {e:?}: protocol {other:?}, use tls (or tcp on the \
+                         loopback)"
+                    ))
+                }
+            }
+        }
+        if let Some(a) = &self.zenoh.auth {
+            if a.user.is_some() != a.password_file.is_some() {
+                return Err("zenoh.auth: user and password_file go together".into());
+            }
+            if a.user.is_none() && a.users_file.is_none() {
+                return Err(
+                    "zenoh.auth: give user and password_file (to connect), users_file (to be \
+                     connected to), or both"
+                        .into(),
+                );
             }
         }
         Ok(())
+    }
+
+    /// The configuration's files made relative to `dir` (the configuration file's folder).
+    pub fn rebase(&mut self, dir: &std::path::Path) {
+        let at = |p: &mut PathBuf| {
+            if p.is_relative() {
+                *p = dir.join(&*p);
+            }
+        };
+        if let Some(t) = &mut self.zenoh.tls {
+            at(&mut t.ca);
+            at(&mut t.certificate);
+            at(&mut t.key);
+        }
+        if let Some(a) = &mut self.zenoh.auth {
+            a.password_file.iter_mut().for_each(at);
+            a.users_file.iter_mut().for_each(at);
+        }
     }
 }
 
@@ -358,25 +476,25 @@ mod tests {
         c.check().map(|()| c)
     }
 
-    const OK: &str = "bus = \"robot\"\n[zenoh]\nlisten = [\"tcp/0.0.0.0:7447\"]\n";
+    const OK: &str = "bus = \"robot\"\n[zenoh]\nlisten = [\"tcp/127.0.0.1:7447\"]\n";
 
     #[test]
     fn a_configuration_is_checked_before_the_bridge_starts() {
         let c = cfg(OK).unwrap();
         assert_eq!(c.prefix, "lcm");
-        assert_eq!(c.inbound, vec![".*".to_string()]);
+        assert!(c.inbound.is_empty(), "nothing comes in unless named");
         for (text, why) in [
             (
-                "bus = \" \"\n[zenoh]\nlisten = [\"tcp/0.0.0.0:7447\"]\n",
+                "bus = \" \"\n[zenoh]\nlisten = [\"tcp/127.0.0.1:7447\"]\n",
                 "name this LCM bus",
             ),
             ("bus = \"r\"\n", "nothing to listen on or connect to"),
             (
-                "bus = \"r\"\nprefix = \"a//b\"\n[zenoh]\nlisten = [\"tcp/0.0.0.0:7447\"]\n",
+                "bus = \"r\"\nprefix = \"a//b\"\n[zenoh]\nlisten = [\"tcp/127.0.0.1:7447\"]\n",
                 "is no Zenoh key",
             ),
             (
-                "bus = \"r\"\n[zenoh]\nmode = \"router\"\nlisten = [\"tcp/0.0.0.0:7447\"]\n",
+                "bus = \"r\"\n[zenoh]\nmode = \"router\"\nlisten = [\"tcp/127.0.0.1:7447\"]\n",
                 "\"peer\" or \"client\"",
             ),
             (
@@ -392,6 +510,28 @@ mod tests {
                 "max_rate_hz must be positive",
             ),
             (&format!("in = [\"[\"]\n{OK}"), "in pattern \"[\""),
+            // Item 9 of the reliability issue: the link was plain TCP that anyone who reached
+            // the port could join and publish goals, plans and stops through.
+            (
+                "bus = \"r\"\n[zenoh]\nlisten = [\"tcp/0.0.0.0:7447\"]\n",
+                "plain TCP beyond this computer",
+            ),
+            (
+                "bus = \"r\"\n[zenoh]\nconnect = [\"tcp/10.0.1.2:7447\"]\n",
+                "say insecure = true",
+            ),
+            (
+                "bus = \"r\"\n[zenoh]\nlisten = [\"tls/0.0.0.0:7447\"]\n",
+                "TLS needs [zenoh.tls]",
+            ),
+            (
+                "bus = \"r\"\n[zenoh]\nlisten = [\"udp/0.0.0.0:7447\"]\n",
+                "protocol \"udp\"",
+            ),
+            (
+                "bus = \"r\"\n[zenoh]\nlisten = [\"tcp/127.0.0.1:7447\"]\n[zenoh.auth]\nuser = \"a\"\n",
+                "user and password_file go together",
+            ),
         ] {
             let e = cfg(text).unwrap_err();
             assert!(e.contains(why), "{text}: {e}");
@@ -406,6 +546,9 @@ mod tests {
                 .join(name);
             let c: BridgeConfig = stride_node::app_config(Some(&path)).unwrap();
             assert!(!c.out.is_empty() && !c.inbound.is_empty(), "{name}");
+            // Named channels only, never everything.
+            assert!(c.inbound.iter().all(|p| !p.contains(".*")), "{name}");
+            assert!(c.zenoh.tls.is_some() && !c.zenoh.insecure, "{name}");
         }
     }
 
@@ -479,5 +622,27 @@ mod tests {
         e.sent("PLAN", b"x", t0);
         assert!(!e.is_echo("PLAN", b"x", t0 + Duration::from_secs(3)));
         assert!(e.is_empty());
+    }
+
+    #[test]
+    fn insecure_says_so_in_so_many_words_and_loopback_needs_no_tls() {
+        let c = cfg("bus = \"r\"\n[zenoh]\ninsecure = true\nconnect = [\"tcp/10.0.1.2:7447\"]\n");
+        assert!(c.is_ok(), "{c:?}");
+        for e in [
+            "tcp/127.0.0.1:7447",
+            "tcp/[::1]:7447",
+            "tcp/localhost:7447",
+            "tcp/127.3.4.5:1",
+        ] {
+            assert!(is_loopback(e), "{e}");
+        }
+        for e in [
+            "tcp/0.0.0.0:7447",
+            "tcp/10.0.1.2:7447",
+            "tcp/[::]:7447",
+            "tcp/robot.local:7447",
+        ] {
+            assert!(!is_loopback(e), "{e}");
+        }
     }
 }

@@ -5,9 +5,10 @@ use stride_node::Launch;
 use stride_zenoh_bridge::{Bridge, BridgeConfig, Cli};
 
 fn main() -> std::process::ExitCode {
-    stride_node::main("stride-zenoh-bridge", |l: Launch<Cli, BridgeConfig>| {
+    stride_node::main("stride-zenoh-bridge", |mut l: Launch<Cli, BridgeConfig>| {
+        l.cli.quiet_zenoh();
         let node = l.start()?;
-        let app = Bridge::start(&node, l.cfg)?;
+        let app = Bridge::start(&node, l.cfg, l.cli.config_file())?;
         node.run(app)
     })
 }

@@ -1,6 +1,7 @@
 //! Archie's optimum against a reference that shares no code with the planner: the shortest
 //! path among polygons inscribed in the grown circles is a lower bound, among polygons
-//! circumscribed about them an upper bound (a visibility graph and Dijkstra, written here).
+//! circumscribed about them an upper bound (a visibility graph and Dijkstra,
+//! `stride_world::reference`).
 
 use std::path::PathBuf;
 
@@ -9,90 +10,7 @@ use stride_footstep::archie::{exact_length, Params};
 use stride_footstep::geom::{v2, Circle};
 use stride_footstep::scene::Scene;
 
-type P = (f64, f64);
-
-/// The regular `n`-gon inscribed in (`scale` = 1) or circumscribed about (`scale` =
-/// 1/cos(π/n)) a circle, counter-clockwise.
-fn polygon(c: P, r: f64, n: usize, scale: f64) -> Vec<P> {
-    (0..n)
-        .map(|k| {
-            let a = std::f64::consts::TAU * k as f64 / n as f64;
-            (c.0 + r * scale * a.cos(), c.1 + r * scale * a.sin())
-        })
-        .collect()
-}
-
-/// True when the segment a-b has a stretch of positive length strictly inside the convex,
-/// counter-clockwise polygon (clipped against each side's half-plane).
-fn enters(a: P, b: P, poly: &[P]) -> bool {
-    let (mut lo, mut hi) = (0.0f64, 1.0f64);
-    for k in 0..poly.len() {
-        let (p, q) = (poly[k], poly[(k + 1) % poly.len()]);
-        // Inside: to the left of p->q by more than a hair.
-        let e = (q.0 - p.0, q.1 - p.1);
-        let len = (e.0 * e.0 + e.1 * e.1).sqrt();
-        let side = |x: P| (e.0 * (x.1 - p.1) - e.1 * (x.0 - p.0)) / len - 1e-9;
-        let (sa, sd) = (side(a), side(b) - side(a));
-        if sd.abs() < 1e-15 {
-            if sa <= 0.0 {
-                return false;
-            }
-            continue;
-        }
-        let t = -sa / sd;
-        if sd > 0.0 {
-            lo = lo.max(t);
-        } else {
-            hi = hi.min(t);
-        }
-        if hi - lo <= 1e-12 {
-            return false;
-        }
-    }
-    hi - lo > 1e-12
-}
-
-/// The shortest path from `s` to `g` among the polygons, or `None`.
-fn shortest(s: P, g: P, polys: &[Vec<P>]) -> Option<f64> {
-    let inside = |x: P| polys.iter().any(|p| point_inside(x, p));
-    let mut nodes = vec![s, g];
-    for p in polys {
-        nodes.extend(p.iter().copied().filter(|&v| !inside(v)));
-    }
-    let n = nodes.len();
-    let free = |i: usize, j: usize| !polys.iter().any(|p| enters(nodes[i], nodes[j], p));
-    let dist = |i: usize, j: usize| {
-        ((nodes[i].0 - nodes[j].0).powi(2) + (nodes[i].1 - nodes[j].1).powi(2)).sqrt()
-    };
-    let mut best = vec![f64::INFINITY; n];
-    let mut done = vec![false; n];
-    best[0] = 0.0;
-    for _ in 0..n {
-        let u = (0..n)
-            .filter(|&k| !done[k])
-            .min_by(|&a, &b| best[a].total_cmp(&best[b]))?;
-        if !best[u].is_finite() {
-            return None;
-        }
-        if u == 1 {
-            return Some(best[1]);
-        }
-        done[u] = true;
-        for v in 0..n {
-            if !done[v] && best[u] + dist(u, v) < best[v] && free(u, v) {
-                best[v] = best[u] + dist(u, v);
-            }
-        }
-    }
-    None
-}
-
-fn point_inside(x: P, poly: &[P]) -> bool {
-    (0..poly.len()).all(|k| {
-        let (p, q) = (poly[k], poly[(k + 1) % poly.len()]);
-        (q.0 - p.0) * (x.1 - p.1) - (q.1 - p.1) * (x.0 - p.0) > 1e-9
-    })
-}
+use stride_world::reference::{inscribed_and_circumscribed, shortest, P};
 
 const SIDES: usize = 24;
 
@@ -102,15 +20,7 @@ fn bounds(s: P, g: P, circles: &[Circle], p: &Params) -> (Option<f64>, Option<f6
         .iter()
         .map(|c| ((c.c.x, c.c.y), c.r + p.inflation))
         .collect();
-    let inscribed: Vec<Vec<P>> = grown
-        .iter()
-        .map(|&(c, r)| polygon(c, r, SIDES, 1.0))
-        .collect();
-    let out = 1.0 / (std::f64::consts::PI / SIDES as f64).cos();
-    let circumscribed: Vec<Vec<P>> = grown
-        .iter()
-        .map(|&(c, r)| polygon(c, r, SIDES, out))
-        .collect();
+    let [inscribed, circumscribed] = inscribed_and_circumscribed(&grown, SIDES);
     (shortest(s, g, &inscribed), shortest(s, g, &circumscribed))
 }
 
@@ -195,6 +105,66 @@ proptest! {
         }
         let grown: Vec<Circle> = circles.iter().map(|c| Circle { c: c.c, r: c.r + p.inflation }).collect();
         prop_assume!(!grown.iter().any(|c| c.c.dist(v2(0.0, 0.0)) <= c.r + 1e-6 || c.c.dist(v2(goal.0, goal.1)) <= c.r + 1e-6));
+        check((0.0, 0.0), goal, &circles, &p).map_err(TestCaseError::fail)?;
+    }
+}
+
+/// Item 7 of the reliability issue: two copies of a disk between 1 µm and 1 mm apart (a mapper
+/// that reports an obstacle twice, a hair apart) left the improved planner no path, where the
+/// thesis's tree found 4.193 m. Near-duplicates are merged; the optimum lies between the
+/// polygon bounds.
+#[test]
+fn two_copies_of_a_disk_a_hair_apart_leave_a_way_round() {
+    use stride_footstep::archie::plan_exact;
+    for p in [Params::default(), Params::improved()] {
+        for dx in [0.0, 1e-9, 1e-6, 2e-6, 1e-5, 1e-4, 5e-4, 1e-3, 3e-3, 1e-2] {
+            let circles = [
+                Circle {
+                    c: v2(2.0, 0.0),
+                    r: 0.5,
+                },
+                Circle {
+                    c: v2(2.0 + dx, 0.0),
+                    r: 0.5,
+                },
+            ];
+            let plan = plan_exact(v2(0.0, 0.0), v2(4.0, 0.0), &circles, &p);
+            assert_eq!(
+                plan.status,
+                stride_footstep::plan::Status::Ok,
+                "{dx} m apart: {}",
+                plan.detail
+            );
+            check((0.0, 0.0), (4.0, 0.0), &circles, &p).unwrap_or_else(|e| panic!("{dx}: {e}"));
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+
+    /// Near-duplicates of a field's disks, 1e-9 to 1e-2 m apart in any direction, with a
+    /// radius a hair different too: the optimum lies between the polygon bounds, and the
+    /// improved planner finds a way whenever the bounds say one exists.
+    #[test]
+    fn near_duplicate_disks_keep_the_optimum_between_the_bounds(
+        cs in prop::collection::vec((1.6f64..3.4, -2.5f64..2.5, 0.2f64..1.2), 1..5),
+        copies in prop::collection::vec((0usize..5, -9.0f64..-2.0, 0.0f64..std::f64::consts::TAU, -1.0f64..1.0), 1..4),
+        improved in any::<bool>(),
+    ) {
+        let p = if improved { Params::improved() } else { Params::default() };
+        let mut circles: Vec<Circle> = cs.iter().map(|&(x, y, r)| Circle { c: v2(x, y), r }).collect();
+        for &(k, exp, dir, dr) in &copies {
+            let base = circles[k % cs.len()];
+            let d = 10f64.powf(exp);
+            circles.push(Circle {
+                c: v2(base.c.x + d * dir.cos(), base.c.y + d * dir.sin()),
+                r: base.r + dr * d,
+            });
+        }
+        let goal = (5.0, 0.0);
+        let grown: Vec<Circle> = circles.iter().map(|c| Circle { c: c.c, r: c.r + p.inflation }).collect();
+        prop_assume!(!grown.iter().any(|c| c.c.dist(v2(0.0, 0.0)) <= c.r + 1e-2 || c.c.dist(v2(goal.0, goal.1)) <= c.r + 1e-2));
         check((0.0, 0.0), goal, &circles, &p).map_err(TestCaseError::fail)?;
     }
 }

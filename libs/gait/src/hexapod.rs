@@ -156,11 +156,13 @@ impl HexGait {
             cfg.sensing_time,
             cfg.max_speed,
         ];
-        let finite =
-            cfg.stride.is_finite() && cfg.swing_height.is_finite() && cfg.min_margin.is_finite();
-        if !(pos.iter().all(|v| v.is_finite() && *v > 0.0) && finite) {
+        let finite = cfg.swing_height.is_finite() && cfg.min_margin.is_finite();
+        // A stride sizes a walk's cycles: a positive one, at least a centimetre.
+        let stride = cfg.stride.is_finite() && cfg.stride >= 0.01;
+        if !(pos.iter().all(|v| v.is_finite() && *v > 0.0) && finite && stride) {
             return Err(GaitError::Parameter(format!(
-                "hexapod gait: positive periods, reach, height and speed wanted: {cfg:?}"
+                "hexapod gait: positive periods, reach, height and speed and a stride of at \
+                 least 0.01 m wanted: {cfg:?}"
             )));
         }
         Ok(HexGait { robot, cfg })

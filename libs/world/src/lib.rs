@@ -1,10 +1,12 @@
 //! The world the robot's planners work in, with no bus and no I/O beyond reading scene files:
 //! scenes ([`scene`]: start, goal, obstacles, surfaces, an elevation map, as TOML files of
 //! `config/scenes/`), plane geometry ([`geom`]), 2.5-D elevation grids and their distance
-//! fields ([`grid`]), and 3-D proximity of swept-sphere volumes on parry3d ([`ssv`]).
+//! fields ([`grid`]), 3-D proximity of swept-sphere volumes on parry3d ([`ssv`]), and an
+//! independent reference for graders of the circle planners ([`reference`]).
 
 pub mod geom;
 pub mod grid;
+pub mod reference;
 pub mod scene;
 pub mod ssv;
 

@@ -176,8 +176,53 @@ impl Obstacle {
             if points.len() < 3 {
                 return Err(format!("a polygon of {} points", points.len()));
             }
+            if points.len() > Obstacle::MAX_POINTS {
+                return Err(format!(
+                    "a polygon of {} points, more than {}",
+                    points.len(),
+                    Obstacle::MAX_POINTS
+                ));
+            }
+        }
+        for (name, v) in self.sizes() {
+            if v < 0.0 {
+                return Err(format!("{name} {v}: a size is not negative"));
+            }
         }
         Ok(())
+    }
+
+    /// The most corners of a polygon.
+    pub const MAX_POINTS: usize = 64;
+
+    /// Its sizes, by name (a negative one is refused, never taken as 0).
+    fn sizes(&self) -> Vec<(&'static str, f64)> {
+        let height = |h: &Option<f64>| h.map(|h| ("height", h));
+        match self {
+            Obstacle::Circle {
+                radius, height: h, ..
+            } => [Some(("radius", *radius)), height(h)]
+                .into_iter()
+                .flatten()
+                .collect(),
+            Obstacle::Box {
+                length,
+                width,
+                height: h,
+                ..
+            } => [
+                Some(("length", *length)),
+                Some(("width", *width)),
+                height(h),
+            ]
+            .into_iter()
+            .flatten()
+            .collect(),
+            Obstacle::Polygon { height: h, .. } => height(h).into_iter().collect(),
+            Obstacle::Sphere { radius, .. }
+            | Obstacle::Capsule { radius, .. }
+            | Obstacle::RoundedTriangle { radius, .. } => vec![("radius", *radius)],
+        }
     }
 
     /// Its footprint as a convex polygon (counter-clockwise), or `None` for a circle or a
@@ -444,9 +489,31 @@ impl Scene {
         Ok(())
     }
 
-    /// Reads a scene file.
+    /// The largest scene file read, bytes (its obstacles and surfaces size what is built of
+    /// it).
+    pub const MAX_FILE: u64 = 8 << 20;
+
+    /// The most obstacles a scene may hold.
+    pub const MAX_OBSTACLES: usize = 10_000;
+
+    /// Reads a scene file (refused before it is read when larger than [`Scene::MAX_FILE`]).
     pub fn load(path: &std::path::Path) -> Result<Scene, SceneError> {
         let p = path.display().to_string();
+        let len = std::fs::metadata(path)
+            .map_err(|error| SceneError::Io {
+                path: p.clone(),
+                error,
+            })?
+            .len();
+        if len > Scene::MAX_FILE {
+            return Err(SceneError::Invalid {
+                path: p,
+                why: format!(
+                    "{len} bytes, more than the {} MB a scene may take",
+                    Scene::MAX_FILE >> 20
+                ),
+            });
+        }
         let text = std::fs::read_to_string(path).map_err(|error| SceneError::Io {
             path: p.clone(),
             error,
@@ -477,6 +544,13 @@ impl Scene {
     }
 
     fn check(&self) -> Result<(), String> {
+        if self.obstacle.len() > Scene::MAX_OBSTACLES {
+            return Err(format!(
+                "{} obstacles, more than the {} a scene may hold",
+                self.obstacle.len(),
+                Scene::MAX_OBSTACLES
+            ));
+        }
         self.check_reach(Scene::REACH)?;
         for (i, s) in self.surface.iter().enumerate() {
             if !(3..=8).contains(&s.points.len()) {
@@ -513,5 +587,73 @@ impl Scene {
             .iter()
             .map(Obstacle::bounding_circle)
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(obstacles: &str) -> Result<Scene, SceneError> {
+        Scene::parse(
+            &format!(
+                "name = \"t\"\nstart = {{ x = 0.0, y = 0.0 }}\ngoal = {{ x = 1.0, y = 0.0 }}\n{obstacles}"
+            ),
+            std::path::Path::new("."),
+        )
+    }
+
+    /// D10 of the reliability findings: a radius of -0.5 was taken as 0 and published.
+    #[test]
+    fn a_negative_size_is_refused_not_taken_as_zero() {
+        for (o, what) in [
+            (
+                "shape = \"circle\"\nx = 1.0\ny = 0.0\nradius = -0.5",
+                "radius -0.5",
+            ),
+            (
+                "shape = \"box\"\nx = 1.0\ny = 0.0\nlength = 1.0\nwidth = -0.1",
+                "width -0.1",
+            ),
+            (
+                "shape = \"sphere\"\ncentre = [1.0, 0.0, 0.0]\nradius = -1.0",
+                "radius -1",
+            ),
+            (
+                "shape = \"circle\"\nx = 1.0\ny = 0.0\nradius = 0.5\nheight = -2.0",
+                "height -2",
+            ),
+        ] {
+            let e = scene(&format!("[[obstacle]]\n{o}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(what) && e.contains("not negative"), "{e}");
+        }
+        assert!(
+            scene("[[obstacle]]\nshape = \"circle\"\nx = 1.0\ny = 0.0\nradius = 0.0\n").is_ok()
+        );
+    }
+
+    /// D10: a scene of 1e6 obstacles (68 MB) reached 2.7 GB in stride-sim before its
+    /// refusal. Too many obstacles are refused at the check, a file too large before it is
+    /// read.
+    #[test]
+    fn a_scene_too_large_is_refused_before_anything_is_built_of_it() {
+        let many: String = (0..=Scene::MAX_OBSTACLES)
+            .map(|i| {
+                format!(
+                    "[[obstacle]]\nshape = \"circle\"\nx = {}.0\ny = 5.0\nradius = 0.1\n",
+                    i % 100
+                )
+            })
+            .collect();
+        let e = scene(&many).unwrap_err().to_string();
+        assert!(e.contains("obstacles, more than"), "{e}");
+        let dir = tempfile::tempdir().unwrap();
+        let big = dir.path().join("big.toml");
+        let f = std::fs::File::create(&big).unwrap();
+        f.set_len(Scene::MAX_FILE + 1).unwrap();
+        let e = Scene::load(&big).unwrap_err().to_string();
+        assert!(e.contains("more than the 8 MB"), "{e}");
     }
 }

@@ -342,9 +342,11 @@ fn arc_blocked(circles: &[Circle], i: usize, a: f64, sweep: f64, ccw: bool, grow
     })
 }
 
-/// The circles that matter: one of each pair of identical circles, and none that lies inside
-/// another (a mapper that reports an obstacle twice changes nothing).
+/// The circles that matter: near-duplicates merged ([`merge_near`]), then none that lies
+/// inside another (a mapper that reports an obstacle twice, or twice a hair apart, changes
+/// nothing).
 pub fn distinct(circles: &[Circle]) -> Vec<Circle> {
+    let circles = merge_near(circles);
     // k lies in m (within a micrometre); of two that lie in each other the later one goes.
     let within = |k: usize, m: usize| {
         let (a, b) = (circles[k], circles[m]);
@@ -355,6 +357,57 @@ pub fn distinct(circles: &[Circle]) -> Vec<Circle> {
         .filter(|&k| !(0..circles.len()).any(|m| m != k && inside(k, m)))
         .map(|k| circles[k])
         .collect()
+}
+
+/// How far the circle enclosing two near-duplicates may reach beyond the larger of them and
+/// still be taken for both, m: at least 1 mm, more for large circles, as far as two circles
+/// that nearly coincide leave their tangents and arcs degenerate (the gap between one's arc
+/// and the other's boundary is about d²/2r for centres d apart, under [`TOUCH`] for d up to
+/// about sqrt(2 r TOUCH)).
+fn merge_reach(r: f64) -> f64 {
+    (2.0 * (2.0 * r * TOUCH).sqrt()).max(1e-3)
+}
+
+/// Two circles that nearly coincide (one reaching beyond the other by at most
+/// [`merge_reach`]) replaced by the smallest circle enclosing both, until no such pair is
+/// left: the path keeps out of both, and no arc has to pass between two boundaries a hair
+/// apart (two copies of a disk 1 µm to 1 mm apart left no path at all).
+pub fn merge_near(circles: &[Circle]) -> Vec<Circle> {
+    let mut out: Vec<Circle> = circles.to_vec();
+    loop {
+        let mut merged = None;
+        'pairs: for i in 0..out.len() {
+            for j in i + 1..out.len() {
+                let (a, b) = (out[i], out[j]);
+                let d = a.c.dist(b.c);
+                // The enclosing circle's radius, and how far it reaches beyond the larger.
+                let big = a.r.max(b.r);
+                let r = (d + a.r + b.r) / 2.0;
+                if r <= big {
+                    continue; // one lies inside the other: `distinct` keeps the larger
+                }
+                if r - big <= merge_reach(big) {
+                    let (big_c, small) = if a.r >= b.r { (a, b) } else { (b, a) };
+                    // On the line through both centres, reaching both far sides.
+                    let u = if d > 0.0 {
+                        (small.c - big_c.c) * (1.0 / d)
+                    } else {
+                        v2(0.0, 0.0)
+                    };
+                    let c = big_c.c + u * (r - big_c.r);
+                    merged = Some((i, j, Circle { c, r }));
+                    break 'pairs;
+                }
+            }
+        }
+        match merged {
+            Some((i, j, c)) => {
+                out[i] = c;
+                out.remove(j);
+            }
+            None => return out,
+        }
+    }
 }
 
 /// Closer than this, two circles touch: an arc passing there would squeeze through a gap of
