@@ -13,6 +13,7 @@ STRIDE_PACKAGES=(
     g++                               # the Due firmware's host syntax check (scripts/firmware)
     gcc-avr avr-libc                  # the link codec built for the ATmega32U4 (scripts/firmware)
     iproute2 util-linux               # ip, unshare: the private test network
+    openssl                           # the Zenoh link's certificates (scripts/zenoh-certs)
     python3 python3-pip python3-venv  # bench tables; the newer-liblcm check; the peers' venv
     default-jdk-headless libjchart2d-java # the Java types and lcm-spy (scripts/spy)
 )

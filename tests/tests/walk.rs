@@ -848,8 +848,9 @@ fn counts(log: &Path) -> std::collections::BTreeMap<String, u64> {
 fn across_a_routed_link_two_zenoh_bridges_carry_the_walk_and_nothing_comes_back() {
     // The robot and the laptop on two subnets joined by a router: unicast passes, multicast
     // does not. The split profile's deputies run on each, each on its own LCM bus; the
-    // robot's bridge listens, the laptop's connects; the laptop's planner answers the robot's
-    // gait through both, and the walk reaches its goal. Every message crosses once: none
+    // robot's bridge listens, the laptop's connects, over TLS with certificates both ways and
+    // the operator's password; the laptop's planner answers the robot's gait through both,
+    // and the walk reaches its goal. Every message crosses once: none
     // comes back to its bus (the loop of two bridges does not multiply traffic), and the
     // stock stride-spy on the laptop's side knows every type it got.
     let _one = ONE_WALK.lock().unwrap_or_else(|e| e.into_inner());
@@ -868,11 +869,19 @@ fn across_a_routed_link_two_zenoh_bridges_carry_the_walk_and_nothing_comes_back(
         !counts(&logs[1]).contains_key("SIM_REPORT"),
         "multicast crossed the router"
     );
+    // The link as a user makes it: TLS both ways and the operator's password, the shipped
+    // configurations' files made by scripts/zenoh-certs beside them.
+    let certs = std::process::Command::new(repo("scripts/zenoh-certs"))
+        .arg(dir.join("certs"))
+        .arg("10.77.1.2")
+        .output()
+        .unwrap();
+    assert!(certs.status.success(), "{certs:?}");
     let robot_cfg = bridge_config("zenoh-bridge-robot.toml", &dir, |t| {
-        t["zenoh"]["listen"] = vec![toml::Value::from("tcp/10.77.1.2:7447")].into();
+        t["zenoh"]["listen"] = vec![toml::Value::from("tls/10.77.1.2:7447")].into();
     });
     let laptop_cfg = bridge_config("zenoh-bridge-operator.toml", &dir, |t| {
-        t["zenoh"]["connect"] = vec![toml::Value::from("tcp/10.77.1.2:7447")].into();
+        t["zenoh"]["connect"] = vec![toml::Value::from("tls/10.77.1.2:7447")].into();
     });
     let bridge = |host: &str, cfg: &Path| {
         let mut c = split

@@ -353,7 +353,9 @@ impl Tick for Bridge {
         let peers = self.session.info().peers_zid().wait().count()
             + self.session.info().routers_zid().wait().count();
         let alone = peers == 0;
-        if self.alone != Some(alone) {
+        // Said on the console once it lasts (a bridge that starts waits a moment for its peer).
+        let lasting = node.uptime() > Duration::from_secs(3);
+        if lasting && self.alone != Some(alone) {
             if alone {
                 tracing::warn!("connected to no peer ({})", self.endpoints);
             } else {
