@@ -81,8 +81,9 @@ struct Group {
     trajectory: Option<String>,
     command: Option<String>,
     states: Option<(lcm::Subscription, Receiver<JointStateT>)>,
-    /// The last measured position of each joint, and when.
-    measured: BTreeMap<String, (f64, Instant)>,
+    /// The last measured position of each joint, and when (walker time, from the state's own
+    /// stamp: a state that waited in a queue is compared with the pattern of its time).
+    measured: BTreeMap<String, (f64, f64)>,
     /// Each joint's last measured speed (rad/s; NaN: unknown).
     speeds: BTreeMap<String, f64>,
     /// The headers of the trajectories and of the set-points: a sequence per channel.
@@ -105,50 +106,59 @@ impl Group {
         why
     }
 
-    fn take_states(&mut self, now: Instant) {
+    /// Takes the joints' states; `now` is walker time, `utime0` its start on the system
+    /// clock (a state's stamp is its time; a stamp of none, or ahead of now, counts as now).
+    fn take_states(&mut self, now: f64, utime0: i64) {
         if let Some((_, rx)) = &self.states {
             while let Ok(s) = rx.try_recv() {
+                let stamped = (s.header.utime - utime0) as f64 * 1e-6;
+                let at = if s.header.utime > 0 && stamped <= now {
+                    stamped
+                } else {
+                    now
+                };
                 for (i, (n, p)) in s.names.iter().zip(&s.positions).enumerate() {
                     // The group's own joints only (a message of other names sizes nothing).
                     if p.is_finite() && self.joints.contains(n) {
-                        // The speed: the bridge's, else the change since the last position
-                        // (unknown when both came in one turn).
+                        // The speed: the bridge's, else the change since the last position.
                         let v = match (s.velocities.get(i), self.measured.get(n)) {
                             (Some(v), _) if v.is_finite() => *v,
-                            (_, Some((q, at))) if now > *at => {
-                                (p - q) / now.saturating_duration_since(*at).as_secs_f64()
-                            }
+                            (_, Some((q, t))) if at > *t => (p - q) / (at - t),
                             _ => f64::NAN,
                         };
                         self.speeds.insert(n.clone(), v);
-                        self.measured.insert(n.clone(), (*p, now));
+                        self.measured.insert(n.clone(), (*p, at));
                     }
                 }
             }
         }
     }
 
-    /// The largest distance of the fresh measurements from `q` (joint order), and the joint.
-    fn off(&self, q: &[f64], now: Instant) -> Option<(f64, String)> {
+    /// The largest distance of the fresh measurements (at most MEASURED_AGE old at `now`)
+    /// from where `want` has the group's joints at each measurement's time, and the joint.
+    fn off(&self, want: impl Fn(f64) -> Option<Vec<f64>>, now: f64) -> Option<(f64, String)> {
         self.states.as_ref()?;
         self.joints
             .iter()
-            .zip(q)
-            .filter_map(|(n, want)| {
+            .enumerate()
+            .filter_map(|(i, n)| {
                 let (p, at) = self.measured.get(n)?;
-                (now.saturating_duration_since(*at) < Duration::from_millis(500))
-                    .then(|| ((p - want).abs(), n.clone()))
+                if now - at >= MEASURED_AGE {
+                    return None;
+                }
+                let q = want(*at)?;
+                Some(((p - q.get(i)?).abs(), n.clone()))
             })
             .max_by(|a, b| a.0.total_cmp(&b.0))
     }
 
     /// Every joint measured, recently.
-    fn all_measured(&self, now: Instant) -> bool {
+    fn all_measured(&self, now: f64) -> bool {
         self.states.is_none()
             || self.joints.iter().all(|n| {
-                self.measured.get(n).is_some_and(|(_, at)| {
-                    now.saturating_duration_since(*at) < Duration::from_millis(500)
-                })
+                self.measured
+                    .get(n)
+                    .is_some_and(|(_, at)| now - at < MEASURED_AGE)
             })
     }
 
@@ -170,6 +180,9 @@ impl Group {
 
 /// Slower than this, rad/s, a joint is at rest.
 const STILL_SPEED: f64 = 0.01;
+
+/// A joint's measurement older than this, s, tells nothing of where it is.
+const MEASURED_AGE: f64 = 0.5;
 
 /// Rows of joints in time (walker time, s): positions and velocities per group, in group
 /// order.
@@ -358,6 +371,8 @@ pub struct GaitApp {
     resumed: bool,
     /// Where the feet stand once the robot is brought into its pose after a halt.
     restand: Option<[Place; 2]>,
+    /// Standing up after a halt, and why it halted (said when the move into the pose begins).
+    standing_up: Option<String>,
     /// The first odometry sets the anchor (a gait restarted mid-walk stands where its frame
     /// says nothing of); later ones correct it.
     anchored: bool,
@@ -393,6 +408,9 @@ pub struct GaitApp {
 
 /// The loop's period while the robot stands with nothing to do.
 const IDLE_TICK: Duration = Duration::from_millis(20);
+
+/// Plans that may wait in liblcm's queue for the gait's loop.
+const PLAN_QUEUE: usize = 10_000;
 
 /// The longest walk one command may ask of the hexapod, m.
 const MAX_WALK: f64 = 20.0;
@@ -446,6 +464,10 @@ impl GaitApp {
                     )
                 })?;
                 let (sub, rx) = node.queue::<FootstepPlanT>(&cfg.plan_channel)?;
+                // A burst of plans waits for the loop in liblcm's queue (its default, 30,
+                // drops the rest of a burst while a tick makes a pattern): every plan is
+                // counted, taken, refused or dropped, never lost unseen.
+                sub.set_queue_capacity(PLAN_QUEUE)?;
                 let mut groups = Vec::new();
                 for leg in [Leg::Left, Leg::Right] {
                     if let Some(ch) = cfg.joints.get(leg.name()) {
@@ -577,6 +599,7 @@ impl GaitApp {
             halt: None,
             resumed: false,
             restand: None,
+            standing_up: None,
             anchored: false,
             last_request: None,
             refusal_log: Throttle::new(Duration::from_secs(1)),
@@ -981,24 +1004,22 @@ impl GaitApp {
         self.quiet = true;
         self.halt = None;
         self.resumed = false;
-        tracing::info!("standing up from where the joints are, after: {why}");
-        self.status.recovery.clear();
-        self.set_status(
-            TrajectoryStatusT::STATE_IDLE,
-            format!("standing up from where the joints are (after: {why})"),
-        );
+        tracing::info!("standing up from where the joints are once they rest, after: {why}");
+        // The status says STOPPED until the move into the pose begins (a status that turned
+        // back at once might never be seen: changes are spaced).
+        self.standing_up = Some(why);
         node.set_health(NodeStatusT::STATE_STARTING, "standing up after a stop");
         self.phase = Phase::Waiting(t);
     }
 
     /// Waits for the joints' states, then starts from where they are.
-    fn wait(&mut self, node: &Node, t: f64, now: Instant, since: f64) {
-        if !self.groups.iter().all(|g| g.all_measured(now)) {
+    fn wait(&mut self, node: &Node, t: f64, since: f64) {
+        if !self.groups.iter().all(|g| g.all_measured(t)) {
             if t - since > 5.0 {
                 let missing: Vec<&str> = self
                     .groups
                     .iter()
-                    .filter(|g| !g.all_measured(now))
+                    .filter(|g| !g.all_measured(t))
                     .map(|g| g.name.as_str())
                     .collect();
                 self.fault(node, format!("no joint states from {missing:?} for 5 s"));
@@ -1016,7 +1037,7 @@ impl GaitApp {
             .groups
             .iter()
             .zip(&stand)
-            .filter_map(|(g, q)| g.off(q, now))
+            .filter_map(|(g, q)| g.off(|_| Some(q.clone()), t))
             .max_by(|a, b| a.0.total_cmp(&b.0));
         match off {
             Some((d, joint)) if d > self.cfg.pose_tolerance => self.fault(
@@ -1083,8 +1104,23 @@ impl GaitApp {
                 self.sent = None;
                 self.quiet = false;
                 self.phase = Phase::Posing(until);
+                self.say_standing_up();
             }
-            _ => self.ready(node, t),
+            _ => {
+                self.say_standing_up();
+                self.ready(node, t);
+            }
+        }
+    }
+
+    /// After a halt, the status says the robot stands up (the move into the pose begins).
+    fn say_standing_up(&mut self) {
+        if let Some(why) = self.standing_up.take() {
+            self.status.recovery.clear();
+            self.set_status(
+                TrajectoryStatusT::STATE_IDLE,
+                format!("standing up from where the joints are (after: {why})"),
+            );
         }
     }
 
@@ -1128,7 +1164,7 @@ impl GaitApp {
     }
 
     /// Takes plans and keeps the walk going (Archie).
-    fn walk(&mut self, node: &Node, t: f64, now: Instant) {
+    fn walk(&mut self, node: &Node, t: f64) {
         let stream_end = self.stream_end(t);
         let Body::Archie {
             legs,
@@ -1222,11 +1258,8 @@ impl GaitApp {
                     taken += 1;
                     taken_echo = Some(plan.echo);
                 }
-                Verdict::Refused(why) => {
-                    refusals.push(why);
-                    // The walker stands soon: its joints.
-                    adopt = legs.joints_until(walker.pattern(), f64::INFINITY).ok();
-                }
+                // Refused, a plan changes nothing: the walk goes on.
+                Verdict::Refused(why) => refusals.push(why),
                 Verdict::Late { echo, now } => {
                     tracing::debug!("plan for step {echo} came during step {now}: dropped");
                     self.status.dropped += 1;
@@ -1283,7 +1316,7 @@ impl GaitApp {
                 note,
             );
         }
-        self.track(node, t, now);
+        self.track(node, t);
     }
 
     /// Makes the rows of the walker's pattern that the stream comes near and were not made
@@ -1418,16 +1451,21 @@ impl GaitApp {
     }
 
     /// A joint further from the pattern than the tolerance stops the walk.
-    fn track(&mut self, node: &Node, t: f64, now: Instant) {
+    fn track(&mut self, node: &Node, t: f64) {
         if self.quiet {
             return;
         }
-        let at = t - self.cfg.track_lag;
-        if at < self.rows.times[0] {
-            return;
-        }
+        let (lag, first) = (self.cfg.track_lag, self.rows.times[0]);
         let worst = (0..self.groups.len())
-            .filter_map(|g| self.groups[g].off(&self.rows.at(self.group_index(g), at).0, now))
+            .filter_map(|g| {
+                let k = self.group_index(g);
+                // Each measurement against the rows of its own time (the bridges' lag
+                // behind).
+                self.groups[g].off(
+                    |at| (at - lag >= first).then(|| self.rows.at(k, at - lag).0),
+                    t,
+                )
+            })
             .max_by(|a, b| a.0.total_cmp(&b.0));
         if let Some((d, joint)) = worst {
             if d > self.cfg.track_tolerance {
@@ -1548,7 +1586,7 @@ impl Tick for GaitApp {
         // too, and a flood of them must not multiply what goes to the drives.
         let periodic = self.period.due(now);
         for g in &mut self.groups {
-            g.take_states(now);
+            g.take_states(t, self.utime0);
         }
         self.take_imu();
         self.take_odometry();
@@ -1567,10 +1605,10 @@ impl Tick for GaitApp {
             self.halt(node, t, why.join("; "), auto);
         }
         match self.phase.clone() {
-            Phase::Waiting(since) => self.wait(node, t, now, since),
+            Phase::Waiting(since) => self.wait(node, t, since),
             Phase::Posing(until) if t >= until => self.ready(node, t),
             Phase::Posing(_) => {}
-            Phase::Ready => self.walk(node, t, now),
+            Phase::Ready => self.walk(node, t),
             Phase::Halted => self.halted(node, t),
             Phase::Fault(_) => {}
         }
@@ -1602,10 +1640,12 @@ impl Tick for GaitApp {
             self.counter_period.next(now);
             if let Body::Archie { walker, .. } = &self.body {
                 let c = walker.counter(t);
-                // Unchanged (standing): only at the idle rate.
-                let same = self
-                    .last_counter
-                    .is_some_and(|(last, at)| last == c && now < at + self.idle);
+                // Standing, unchanged: only at the idle rate (walking, at its rate, between
+                // steps too: the counter is the gait's pulse).
+                let same = walker.standing(t)
+                    && self
+                        .last_counter
+                        .is_some_and(|(last, at)| last == c && now < at + self.idle);
                 if !same {
                     self.last_counter = Some((c, now));
                     let m = counter_msg(self.counter_stamper.stamp(), &c);

@@ -1003,7 +1003,7 @@ mod tests {
             &mut sup,
             "planner",
             NodeStatusT::STATE_STALLED,
-            "control loop stalled: no turn for 0.6 s past its time",
+            "control loop stalled: no turn for 1.2 s past its time",
         );
         let notes = sup.step(Instant::now());
         let stops: Vec<&String> = notes

@@ -36,8 +36,10 @@ use lcm::Lcm;
 pub const STATUS_CHANNEL: &str = "STRIDE_STATUS";
 
 /// A node's loop that has not come round for this long past the time its app asked for is
-/// stalled: its heartbeat says STALLED while it lasts.
-pub const STALL_AFTER: Duration = Duration::from_millis(500);
+/// stalled: its heartbeat says STALLED while it lasts (and a launcher stops the robot). A
+/// shorter hiccup is the devices' to absorb: a gait's rows run out after its lookahead and
+/// the bridges bring the joints to rest; a bridge's drives stop on their own watchdog.
+pub const STALL_AFTER: Duration = Duration::from_secs(1);
 
 /// Command-line flags every stride executable accepts (flatten them into the app's parser).
 #[derive(Debug, Clone, clap::Args)]
@@ -299,8 +301,13 @@ impl Node {
 
     /// What the loop's lateness is, in words (None: on time); a change is published at once.
     pub(crate) fn set_loop_note(&self, note: Option<String>) {
-        if let Some(n) = &note {
-            tracing::warn!("{n}");
+        // Said on the console when it begins and ends; the heartbeat carries the figures.
+        let was = self.loop_state.note().is_some();
+        match &note {
+            Some(n) if !was => tracing::warn!("{n}"),
+            Some(n) => tracing::debug!("{n}"),
+            None if was => tracing::info!("control loop on time again"),
+            None => {}
         }
         *self
             .loop_state

@@ -177,6 +177,8 @@ pub(crate) struct Track {
     pub sync_period: Duration,
     /// When the last SYNC went out: the states read before the next one answer it.
     pub last_sync: Option<Instant>,
+    /// When the drives' heartbeats were last watched.
+    pub last_watch: Option<Instant>,
 }
 
 /// A joint slower than this, rad/s, stands still (see [`Master::resting`]).
@@ -469,12 +471,27 @@ impl Track {
     }
 
     /// Declares lost the heartbeats of drives silent for three periods (none when the drives
-    /// send none).
+    /// send none). Silence is judged only over time the master listened: after a gap in its
+    /// own watch longer than a period (its process held up, its frames waiting unread), each
+    /// drive is heard from no earlier than a period ago, so a drive is declared lost three
+    /// periods after the master looks again, not at once.
     pub fn watch_heartbeats(&mut self, now: Instant) {
         if self.drive_heartbeat.is_zero() {
             return;
         }
         let lost_after = self.drive_heartbeat * 3;
+        let away = self
+            .last_watch
+            .is_some_and(|w| now.saturating_duration_since(w) > self.drive_heartbeat);
+        self.last_watch = Some(now);
+        if away {
+            let floor = now.checked_sub(self.drive_heartbeat).unwrap_or(now);
+            for ax in &mut self.axes {
+                if let Some(t) = &mut ax.last_heartbeat {
+                    *t = (*t).max(floor);
+                }
+            }
+        }
         for ax in &mut self.axes {
             if let Some(t) = ax.last_heartbeat {
                 if !ax.heartbeat_lost && now.saturating_duration_since(t) > lost_after {
@@ -626,6 +643,7 @@ impl<B: CanBus> Master<B> {
                 heartbeat: HeartbeatProducer::new(master_node, cfg.master_heartbeat),
                 motion: cfg.motion,
                 drive_heartbeat: cfg.heartbeat,
+                last_watch: None,
                 sync_period: cfg.sync_period,
                 last_sync: None,
             },
@@ -844,6 +862,50 @@ impl<B: CanBus> Master<B> {
 #[cfg(test)]
 mod tests {
     use super::clock_offset;
+
+    /// A bridge held up for 234 ms under load (its drives' heartbeats waiting unread) once
+    /// declared a live drive's heartbeat lost, a fault that stopped the whole robot. Silence
+    /// is judged over time the master listened; a drive that really went silent is still
+    /// declared lost three periods after the master looks again.
+    #[test]
+    fn a_master_held_up_does_not_declare_its_drives_lost_for_its_own_absence() {
+        use super::{Event, Master, MasterConfig};
+        use std::time::{Duration, Instant};
+        let bus = stride_canbus::MemBus::new(1_000_000);
+        let joint = crate::JointConfig {
+            name: "j1".into(),
+            node: 1,
+            counts_per_rev: 4096.0,
+            gear_ratio: 100.0,
+            min_position: -1.5,
+            max_position: 1.5,
+            max_velocity: 3.0,
+            max_acceleration: 60.0,
+            tolerance: 0.01,
+        };
+        let mut m = Master::new(bus.node(), vec![joint], MasterConfig::default()).unwrap();
+        let ms = Duration::from_millis;
+        let t0 = Instant::now();
+        m.track.axes[0].last_heartbeat = Some(t0);
+        m.track.watch_heartbeats(t0 + ms(50));
+        // Held up for 450 ms: nothing is declared when it looks again.
+        m.track.watch_heartbeats(t0 + ms(500));
+        m.track.watch_heartbeats(t0 + ms(550));
+        assert!(m.take_events().is_empty());
+        // Nothing heard since, while it watches every 50 ms: lost 300 ms after its return.
+        let mut lost_at = None;
+        for k in 12..30u64 {
+            m.track.watch_heartbeats(t0 + ms(k * 50));
+            if lost_at.is_none()
+                && m.take_events()
+                    .iter()
+                    .any(|e| matches!(e, Event::HeartbeatLost { .. }))
+            {
+                lost_at = Some(k * 50);
+            }
+        }
+        assert_eq!(lost_at, Some(750));
+    }
 
     #[test]
     fn a_clock_reading_the_scheduler_interrupted_does_not_move_the_start_times() {

@@ -8,8 +8,10 @@
 //! - a plan is taken only while the step it echoes is under way (or, standing, the last one
 //!   taken): the newest plan whose number matches wins; a late plan is counted and dropped,
 //!   never started from;
-//! - a plan with a NaN, a step beyond the per-step limits or a foothold no leg reaches is
-//!   refused with its reason and counted; the robot then steps in place and stands;
+//! - a plan with a NaN, a step beyond the per-step limits (its time outside the timing's
+//!   bounds too) or a foothold no leg reaches is refused with its reason and counted, and
+//!   changes nothing: the walk goes on as if it never came (a peer that floods bad plans does
+//!   not stop a walk; a planner whose plans are all refused is a lost planner, below);
 //! - of a plan, only the first `steps_per_plan` steps after the step it was made for are
 //!   walked unless a newer plan comes; then its next step stops the walk (shortened if the
 //!   legs need it), the feet come side by side and the robot steps in place: a lost planner
@@ -459,7 +461,6 @@ impl Walker {
         let refuse = |me: &mut Walker, why: String| {
             me.counters.refused += 1;
             me.note = format!("plan refused: {why}");
-            me.stand_soon(now);
             Verdict::Refused(why)
         };
         if let Err(why) = self.check(plan, feet, reach) {

@@ -168,7 +168,7 @@ fn with_no_valid_plan_for_long_the_robot_brings_its_feet_together_and_stands() {
 }
 
 #[test]
-fn a_bad_plan_is_refused_with_its_reason_and_the_robot_stands() {
+fn a_bad_plan_is_refused_with_its_reason() {
     let mut w = walker();
     let mut p = plan_from(&w, 0.0, 0, 3, 0);
     p.steps[1].place[0] = f64::NAN;
@@ -206,6 +206,26 @@ fn a_bad_plan_is_refused_with_its_reason_and_the_robot_stands() {
     // Standing where it stood.
     let end = w.pattern().timeline.end;
     assert!(w.standing(end));
+}
+
+/// "One bad plan aborts it": a refused plan stood a walking robot at once, so a peer that
+/// floods bad plans stopped every walk. Refused, a plan changes nothing: the walk goes on
+/// with the last valid plan's steps, and in place, as if it never came.
+#[test]
+fn a_refused_plan_mid_walk_leaves_the_walk_as_it_was() {
+    let mut w = walker();
+    let p = plan_from(&w, 0.0, 0, 6, 0);
+    assert_eq!(w.on_plan(&p, 0.0, &ok, &any), Verdict::Taken(1));
+    let s1 = w.pattern().timeline.steps[0].clone();
+    let t = (s1.lift + s1.land) / 2.0;
+    let before = w.pattern().clone();
+    let mut bad = plan_from(&w, t, 1, 3, 0);
+    bad.steps[0].place[0] = f64::NAN;
+    assert!(matches!(w.on_plan(&bad, t, &ok, &any), Verdict::Refused(_)));
+    assert_eq!(w.pattern(), &before, "the pattern changed");
+    // A valid plan for the step is still taken afterwards.
+    let good = plan_from(&w, t, 1, 3, 0);
+    assert_eq!(w.on_plan(&good, t, &ok, &any), Verdict::Taken(2));
 }
 
 #[test]

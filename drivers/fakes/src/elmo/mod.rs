@@ -125,6 +125,9 @@ pub struct FakeElmo {
     /// Consumed heartbeats: when each watched node was last heard (monitoring starts with
     /// its first heartbeat), and whether its silence was already reported.
     heard: BTreeMap<u8, (Instant, bool)>,
+    /// When the consumed heartbeats were last watched (a drive's processor is never held up
+    /// as this process may be: silence is judged only over time it watched).
+    last_watch: Option<Instant>,
     heartbeat_events: u32,
     drive: DriveState,
     prev_cw: u16,
@@ -146,6 +149,7 @@ impl FakeElmo {
             booted: false,
             last_heartbeat: None,
             heard: BTreeMap::new(),
+            last_watch: None,
             heartbeat_events: 0,
             drive: DriveState::NotReadyToSwitchOn,
             prev_cw: 0,

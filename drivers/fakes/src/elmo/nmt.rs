@@ -83,7 +83,27 @@ impl FakeElmo {
     /// A consumed heartbeat that stopped for longer than its consumer time is a heartbeat
     /// event: an EMCY (0x8130), the NMT state of 0x1029:1, and the reaction of 0x6007.
     pub(super) fn watch_heartbeats(&mut self, now: Instant) {
-        for e in self.consumers() {
+        // This process held up (a real drive's processor never is) longer than half a
+        // consumer time: each watched node counts as heard no earlier than that, so its
+        // silence is judged over time the drive watched, not over the fake's own absence.
+        let consumers = self.consumers();
+        if let Some(half) = consumers
+            .iter()
+            .map(|e| Duration::from_millis(e.time_ms as u64) / 2)
+            .min()
+        {
+            let away = self
+                .last_watch
+                .is_some_and(|w| now.saturating_duration_since(w) > half);
+            if away {
+                let floor = now.checked_sub(half).unwrap_or(now);
+                for (last, _) in self.heard.values_mut() {
+                    *last = (*last).max(floor);
+                }
+            }
+        }
+        self.last_watch = Some(now);
+        for e in consumers {
             let Some(&(last, reported)) = self.heard.get(&e.node) else {
                 continue;
             };
