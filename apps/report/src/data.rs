@@ -9,20 +9,19 @@ use stride_lcmtypes::stride::{
     ObstacleListT, ObstacleT, PoseStampedT, SimReportT,
 };
 
-/// The bytes an event takes in a log besides its channel and data: sync word, event number,
-/// timestamp, channel and data lengths.
-const EVENT_HEADER: u64 = 4 + 8 + 8 + 4 + 4;
-
 /// A foot on the ground: side (0 left, 1 right), x, y (m), heading (rad).
 pub type Foot = (i8, f64, f64, f64);
 
 /// One channel's events.
 #[derive(Debug, Clone, Default)]
 pub struct Channel {
-    /// The LCM type, if this build knows its fingerprint.
+    /// The LCM type, if this build knows its fingerprint (any of its events').
     pub ty: Option<&'static str>,
     /// Events.
     pub count: u64,
+    /// Events whose fingerprint this build does not know (on a channel of a known type:
+    /// messages that do not decode, not another type).
+    pub unknown: u64,
     /// Arrival at the logger less the header's stamp, ms (types with a header).
     pub latency_ms: Vec<f64>,
 }
@@ -97,7 +96,7 @@ pub fn read_log(path: &Path) -> anyhow::Result<Data> {
     let mut undecodable: BTreeMap<String, u64> = BTreeMap::new();
     let mut chunk_end: BTreeMap<String, Option<i64>> = BTreeMap::new();
     while let Some(e) = reader.read_event() {
-        consumed += EVENT_HEADER + e.channel.len() as u64 + e.data.len() as u64;
+        consumed += lcm::event_size(&e);
         if d.events == 0 {
             d.t0 = e.timestamp;
         }
@@ -105,8 +104,9 @@ pub fn read_log(path: &Path) -> anyhow::Result<Data> {
         d.span_s = (e.timestamp - d.t0) as f64 * 1e-6;
         let ty = stride_lcmtypes::type_name_of(&e.data);
         let ch = d.channels.entry(e.channel.clone()).or_default();
-        ch.ty = ty;
+        ch.ty = ch.ty.or(ty);
         ch.count += 1;
+        ch.unknown += u64::from(ty.is_none());
         let Some(ty) = ty else { continue };
         let with_header = *headers
             .entry(e.channel.clone())
@@ -224,10 +224,13 @@ pub fn read_log(path: &Path) -> anyhow::Result<Data> {
         }
     }
     if consumed < size {
+        let unread = size - consumed;
         d.warnings.push(format!(
-            "the log ends in a torn or unreadable event after {} events ({consumed} of {size} \
-             bytes read): the report covers what came before",
-            d.events
+            "the log could not be read past byte {consumed} of {size} (a torn or unreadable \
+             event after {} events; {unread} bytes, {:.0} % of the file, unread): the report \
+             covers what came before",
+            d.events,
+            100.0 * unread as f64 / size.max(1) as f64
         ));
     }
     let unknown: Vec<&str> = d
@@ -243,9 +246,18 @@ pub fn read_log(path: &Path) -> anyhow::Result<Data> {
             unknown.join(", ")
         ));
     }
+    // A channel of a known type whose other events carry no known fingerprint: messages
+    // that do not decode (garbage on it), not another type.
+    for (name, c) in &d.channels {
+        if c.ty.is_some() && c.unknown > 0 {
+            *undecodable.entry(name.clone()).or_default() += c.unknown;
+        }
+    }
     for (ch, n) in undecodable {
-        d.warnings
-            .push(format!("{ch}: {n} messages that do not decode (left out)"));
+        let ty = d.channels.get(&ch).and_then(|c| c.ty).unwrap_or("?");
+        d.warnings.push(format!(
+            "{ch}: {n} messages that do not decode as {ty} (left out)"
+        ));
     }
     for (what, missing) in [
         ("the top view has no obstacles", d.obstacles.is_empty()),

@@ -42,7 +42,21 @@ pub struct Cli {
 
 /// Runs the command line.
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
-    let data = read_log(&cli.log)?;
+    // liblcm's reader says what it finds wrong with a log's bytes on stderr: taken, and said
+    // as a warning of its own.
+    let (data, liblcm) = lcm::capturing_stderr(|| read_log(&cli.log))?;
+    let mut data = data?;
+    data.warnings.extend(
+        liblcm
+            .into_iter()
+            .map(|l| format!("liblcm's log reader: {l}")),
+    );
+    if data.events == 0 {
+        anyhow::bail!(
+            "{} holds no LCM event: nothing to report (an empty file, or not an lcm-logger log)",
+            cli.log.display()
+        );
+    }
     let page = html(&data, &cli.log.display().to_string());
     let out = cli.out.unwrap_or_else(|| cli.log.with_extension("html"));
     std::fs::write(&out, page)

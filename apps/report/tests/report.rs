@@ -282,3 +282,80 @@ fn a_log_of_nothing_known_is_a_report_of_warnings_and_no_log_is_an_error() {
         d.warnings
     );
 }
+
+/// D12 of the reliability findings: stride-report exited 0 with "report of 0 events" for an
+/// empty file, random bytes or garbage, and called channels whose payloads were garbage
+/// "of types this build does not know"; after one bad header at 30 % of a log it said the log
+/// "ends" there, with 70 % unread.
+#[test]
+fn a_file_with_no_event_is_an_error_and_garbage_on_a_known_channel_does_not_decode() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = env!("CARGO_BIN_EXE_stride-report");
+    for (name, bytes) in [
+        ("empty.lcmlog", Vec::new()),
+        (
+            "random.lcmlog",
+            (0..100_000u32)
+                .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+                .collect(),
+        ),
+    ] {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        let out = std::process::Command::new(exe)
+            .arg(&p)
+            .env("RUST_BACKTRACE", "1")
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{name}: {err}");
+        assert!(err.contains("holds no LCM event"), "{name}: {err}");
+        assert!(
+            err.lines()
+                .all(|l| l.starts_with("stride-report:") || l.starts_with("warning: liblcm")),
+            "{name}: {err}"
+        );
+    }
+    // Garbage on a channel of a known type: undecodable messages of that type.
+    let log = dir.path().join("garbage.lcmlog");
+    walk_log(&log);
+    let mut w = LogWriter::append(&log).unwrap();
+    w.write(T0 + 99_000_000, "SIM_POSE", b"garbage, not a pose")
+        .unwrap();
+    w.flush().unwrap();
+    drop(w);
+    let d = read_log(&log).unwrap();
+    assert!(
+        d.warnings
+            .iter()
+            .any(|w| w.contains("SIM_POSE: 1 messages that do not decode as stride.pose_stamped_t")),
+        "{:?}",
+        d.warnings
+    );
+    assert!(
+        !d.warnings
+            .iter()
+            .any(|w| w.contains("does not know") && w.contains("SIM_POSE")),
+        "{:?}",
+        d.warnings
+    );
+    // A bad header at a third: the rest is said unread, with its share.
+    let whole = std::fs::read(&log).unwrap();
+    let mut bad = whole.clone();
+    let at = bad.len() / 3;
+    let sync = bad[at..]
+        .windows(4)
+        .position(|w| w == [0xED, 0xA1, 0xDA, 0x01])
+        .unwrap()
+        + at;
+    bad[sync + 20..sync + 24].copy_from_slice(&(-16i32).to_be_bytes());
+    let cut = dir.path().join("cut.lcmlog");
+    std::fs::write(&cut, &bad).unwrap();
+    let d = read_log(&cut).unwrap();
+    let w = d
+        .warnings
+        .iter()
+        .find(|w| w.contains("could not be read past byte"))
+        .unwrap_or_else(|| panic!("{:?}", d.warnings));
+    assert!(w.contains("% of the file, unread"), "{w}");
+}

@@ -146,9 +146,32 @@ pub fn run(cli: Cli) -> anyhow::Result<std::process::ExitCode> {
             channel,
         } => {
             let filter = channel_filter(&channel)?;
-            let files = export_log(&log, &out, format, &filter)?;
+            // liblcm's reader says what it finds wrong with the log's bytes on stderr: taken,
+            // and said as warnings of its own.
+            // A log that ends torn (or cannot be read past a bad event) is said so: the
+            // export holds what came before.
+            let (done, liblcm) = lcm::capturing_stderr(|| -> anyhow::Result<_> {
+                let files = export_log(&log, &out, format, &filter)?;
+                let read: u64 = lcm::LogReader::open(&log)?
+                    .map(|e| lcm::event_size(&e))
+                    .sum();
+                Ok((files, read))
+            })?;
+            for l in liblcm.iter().take(10) {
+                eprintln!("warning: liblcm's log reader: {l}");
+            }
+            let (files, read) = done?;
             if files.is_empty() {
                 anyhow::bail!("{} holds no events on {channel}", log.display());
+            }
+            let size = std::fs::metadata(&log).map_or(0, |m| m.len());
+            if read < size {
+                eprintln!(
+                    "warning: {} could not be read past byte {read} of {size} (a torn or \
+                     unreadable event; {} bytes unread): the export holds what came before",
+                    log.display(),
+                    size - read
+                );
             }
             for c in files {
                 let undecoded = match (c.undecoded, format) {

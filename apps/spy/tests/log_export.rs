@@ -470,3 +470,41 @@ fn mcap_export_keeps_every_message_in_order_with_its_time_and_values() {
         0
     );
 }
+
+/// D12 of the reliability findings: `stride-spy export` of a torn log wrote a valid MCAP and
+/// said nothing of the torn end; liblcm's reader put its own unprefixed lines on stderr; a
+/// missing log's error said "No such file or directory" twice.
+#[test]
+fn an_export_of_a_torn_log_says_so_and_liblcms_lines_are_its_own() {
+    let dir = tempfile::tempdir().unwrap();
+    let (log, _) = write_log(dir.path());
+    let whole = std::fs::read(&log).unwrap();
+    let torn = dir.path().join("torn.lcmlog");
+    std::fs::write(&torn, &whole[..whole.len() - 7]).unwrap();
+    for format in ["mcap", "json"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_stride-spy"))
+            .args(["export", "--format", format, "--out"])
+            .arg(dir.path().join(format))
+            .arg(&torn)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        assert!(
+            err.contains("could not be read past byte") && err.contains("bytes unread"),
+            "{format}: {err}"
+        );
+        assert!(
+            err.lines().all(|l| l.starts_with("warning: ")),
+            "{format}: an unprefixed line in {err}"
+        );
+    }
+    let missing = Command::new(env!("CARGO_BIN_EXE_stride-spy"))
+        .args(["export", "--out"])
+        .arg(dir.path().join("x"))
+        .arg(dir.path().join("absent.lcmlog"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&missing.stderr);
+    assert_eq!(err.matches("No such file or directory").count(), 1, "{err}");
+}

@@ -91,15 +91,14 @@ pub enum Error {
         url: String,
     },
     /// An event log could not be opened.
-    #[error("could not open LCM log {path:?} (mode {mode}): {source}")]
+    #[error("could not open LCM log {path:?} (mode {mode}): {cause}")]
     LogOpen {
         /// The file.
         path: PathBuf,
         /// `r`, `w` or `a`.
         mode: &'static str,
-        /// The OS error.
-        #[source]
-        source: std::io::Error,
+        /// The OS error (in the message, not again as a source: one line says it once).
+        cause: std::io::Error,
     },
     /// Writing an event to a log failed.
     #[error("writing an event to LCM log {path:?} failed")]

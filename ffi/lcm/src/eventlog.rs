@@ -31,10 +31,10 @@ unsafe impl Send for Handle {}
 
 impl Handle {
     fn open(path: &Path, mode: &'static str) -> Result<Handle> {
-        let open_err = |source| Error::LogOpen {
+        let open_err = |cause| Error::LogOpen {
             path: path.to_owned(),
             mode,
-            source,
+            cause,
         };
         let cpath = CString::new(path.as_os_str().as_bytes()).map_err(|_| {
             open_err(std::io::Error::new(
@@ -201,4 +201,64 @@ impl LogWriter {
             })
         }
     }
+}
+
+/// Runs `f` with this process's stderr going to a temporary file, and returns what was
+/// written there, line by line. liblcm's log reader prints its complaints about a log's bytes
+/// ("Log event has invalid data length", "Invalid header after log data") on stderr,
+/// unprefixed: a tool that reads a log takes them and says them as its own. Meant for a tool's
+/// single reading thread: whatever any other thread writes to stderr meanwhile is taken too.
+pub fn capturing_stderr<T>(f: impl FnOnce() -> T) -> std::io::Result<(T, Vec<String>)> {
+    use std::io::{Read, Seek};
+    use std::os::fd::AsRawFd;
+    let dir = std::env::temp_dir();
+    let path = dir.join(format!(
+        ".stderr-{}-{:x}",
+        std::process::id(),
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos())
+    ));
+    let mut file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create_new(true)
+        .open(&path)?;
+    let _ = std::fs::remove_file(&path);
+    // SAFETY: plain descriptor calls; fd 2 is given back before returning.
+    let saved = unsafe { libc::dup(2) };
+    if saved < 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    // SAFETY: as above.
+    if unsafe { libc::dup2(file.as_raw_fd(), 2) } < 0 {
+        let e = std::io::Error::last_os_error();
+        // SAFETY: closing the copy made above.
+        unsafe { libc::close(saved) };
+        return Err(e);
+    }
+    let out = f();
+    // SAFETY: C's buffered streams flushed, then fd 2 given back and the copy closed.
+    unsafe {
+        libc::fflush(std::ptr::null_mut());
+        libc::dup2(saved, 2);
+        libc::close(saved);
+    }
+    let mut text = String::new();
+    file.rewind()?;
+    file.read_to_string(&mut text)?;
+    Ok((
+        out,
+        text.lines()
+            .map(str::trim)
+            .filter(|l| !l.is_empty())
+            .map(str::to_owned)
+            .collect(),
+    ))
+}
+
+/// The bytes an event takes in a log file: its header (sync word, number, time, lengths) and
+/// its channel and data.
+pub fn event_size(e: &LogEvent) -> u64 {
+    28 + e.channel.len() as u64 + e.data.len() as u64
 }

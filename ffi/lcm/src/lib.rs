@@ -40,7 +40,7 @@ mod sequence;
 
 pub use codec::{DecodeError, Decoder, EncodeError, Encoder, Message};
 pub use error::{Error, Result};
-pub use eventlog::{LogEvent, LogReader, LogWriter};
+pub use eventlog::{capturing_stderr, event_size, LogEvent, LogReader, LogWriter};
 pub use instance::{
     default_url, Lcm, Publisher, RecvInfo, Stats, Subscription, SubscriptionStats, DEFAULT_URL,
     MAX_CHANNEL_LEN,
