@@ -143,6 +143,12 @@ impl BridgeConfig {
         if self.drive_watchdog_ms > u16::MAX as u64 {
             return Err("drive_watchdog_ms is at most 65535".into());
         }
+        if self.max_queue_ms > 60_000 {
+            return Err(format!(
+                "max_queue_ms {} is more than a minute (60000): the queue's rows are sized by it",
+                self.max_queue_ms
+            ));
+        }
         if self.lookahead_ms == 0 || self.max_queue_ms < self.lookahead_ms {
             return Err(format!(
                 "lookahead_ms {} must be positive and max_queue_ms {} at least that",

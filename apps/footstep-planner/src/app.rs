@@ -257,6 +257,7 @@ impl PlannerConfig {
             reach: self.reach_m,
             max_steps: self.max_steps,
             max_budget: Duration::from_millis(self.max_budget_ms),
+            ..Limits::default()
         }
     }
 }

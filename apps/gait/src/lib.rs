@@ -326,6 +326,13 @@ impl GaitConfig {
                 return Err(format!("{name} must be positive, not {v}"));
             }
         }
+        // The move into the pose is sized by them: rows of 10 ms over tolerance / speed.
+        if self.pose_speed < 0.01 || self.pose_tolerance > std::f64::consts::PI {
+            return Err(format!(
+                "pose_speed {} must be at least 0.01 rad/s and pose_tolerance {} at most pi",
+                self.pose_speed, self.pose_tolerance
+            ));
+        }
         let want: &[&str] = match self.robot {
             Robot::Archie => &["left", "right"],
             Robot::Hexapod => &["all"],

@@ -96,8 +96,8 @@ impl Mover {
     /// Checks the command line and listens for joint states and node statuses.
     pub fn start(node: &Node, cli: Cli) -> anyhow::Result<Mover> {
         let (names, targets) = parse_moves(&cli.moves)?;
-        if !(cli.seconds > 0.0 && cli.seconds.is_finite()) {
-            anyhow::bail!("--seconds must be positive");
+        if !(cli.seconds > 0.0 && cli.seconds <= 600.0) {
+            anyhow::bail!("--seconds must be positive, at most 600");
         }
         let latest: Arc<Mutex<Option<JointStateT>>> = Arc::default();
         let l = latest.clone();

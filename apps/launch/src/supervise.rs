@@ -234,8 +234,12 @@ impl Supervisor {
         &self.profile
     }
 
-    /// Takes a heartbeat from the bus.
+    /// Takes a heartbeat from the bus (of the profile's apps only: a bus full of other names
+    /// grows nothing here).
     pub fn heartbeat(&mut self, status: NodeStatusT, now: Instant) {
+        if !self.profile.apps.iter().any(|a| a.name == status.node) {
+            return;
+        }
         let previous = self.beats.remove(&status.node).map(|b| (b.at, b.status));
         self.beats.insert(
             status.node.clone(),

@@ -28,8 +28,8 @@ pub struct PingCli {
     /// Number of pings to send (0: until interrupted).
     #[arg(long, default_value_t = 20)]
     count: u64,
-    /// Payload bytes per ping.
-    #[arg(long, default_value_t = 100)]
+    /// Payload bytes per ping (at most 64 MiB).
+    #[arg(long, default_value_t = 100, value_parser = payload_size)]
     size: usize,
     /// How long to wait for the last echoes, in seconds.
     #[arg(long, default_value_t = 1.0)]
@@ -217,4 +217,14 @@ impl Tick for Echoer {
         )?;
         Ok(())
     }
+}
+
+/// A payload size: at most 64 MiB (liblcm takes messages of up to 256 MB; a ping that size
+/// only measures the allocation).
+fn payload_size(s: &str) -> Result<usize, String> {
+    let n: usize = s.parse().map_err(|e| format!("{e}"))?;
+    if n > 64 << 20 {
+        return Err(format!("{n} bytes, more than 64 MiB"));
+    }
+    Ok(n)
 }

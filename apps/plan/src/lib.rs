@@ -45,9 +45,9 @@ pub struct Cli {
     /// Where the SVGs and plans.csv go.
     #[arg(long, default_value = "out/plans")]
     out: PathBuf,
-    /// Runs per plan (the times are their median and 99th percentile).
-    #[arg(long, default_value_t = 1)]
-    repeats: usize,
+    /// Runs per plan (the times are their median and 99th percentile), 1 to 100 000.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    repeats: u32,
     /// Print a Markdown table of the results.
     #[arg(long)]
     table: bool,
@@ -157,7 +157,7 @@ pub fn run(cli: Cli) -> anyhow::Result<std::process::ExitCode> {
         bar.set_message(scene.name.clone());
         let which = planner::for_scene(&scene);
         if which != planner::Which::Archie {
-            let found = footsteps::run(&scene, cli.repeats, budget, &cli.out, cli.no_svg)?;
+            let found = footsteps::run(&scene, cli.repeats as usize, budget, &cli.out, cli.no_svg)?;
             if which == planner::Which::Kaist {
                 kaist_rows.extend(found);
             } else {
@@ -167,7 +167,7 @@ pub fn run(cli: Cli) -> anyhow::Result<std::process::ExitCode> {
             continue;
         }
         for mode in ["faithful", "same", "improved"] {
-            let (plan, mut times, params) = plan_archie(&scene, mode, cli.repeats);
+            let (plan, mut times, params) = plan_archie(&scene, mode, cli.repeats as usize);
             let optimum = exact_length(scene.start.p(), scene.goal.p(), &scene.circles(), &params)
                 .unwrap_or(f64::NAN);
             if !cli.no_svg {
@@ -212,7 +212,7 @@ pub fn run(cli: Cli) -> anyhow::Result<std::process::ExitCode> {
         }
         footsteps::write_csv(&cli.out.join(csv), rows)?;
         if cli.table {
-            footsteps::print_table(rows, cli.repeats, budget)?;
+            footsteps::print_table(rows, cli.repeats as usize, budget)?;
             outln!()?;
         } else {
             for r in rows.iter() {
@@ -243,7 +243,7 @@ pub fn run(cli: Cli) -> anyhow::Result<std::process::ExitCode> {
     }
     write_csv(&cli.out.join("plans.csv"), &rows)?;
     if cli.table {
-        print_table(&rows, cli.repeats)?;
+        print_table(&rows, cli.repeats as usize)?;
     } else {
         for r in &rows {
             let metres = |v: f64| {

@@ -260,6 +260,13 @@ impl SimConfig {
         if !(self.perception.map_size.is_finite() && self.perception.map_size > 0.0) {
             return Err("perception.map_size must be positive".into());
         }
+        // What waits for its delay, and the map each carries, are sized by them.
+        if self.perception.delay > 5.0 || self.perception.map_size > 50.0 {
+            return Err(format!(
+                "perception.delay {} s (at most 5) and perception.map_size {} m (at most 50)",
+                self.perception.delay, self.perception.map_size
+            ));
+        }
         if self.true_joint_channels.is_empty() {
             return Err("true_joint_channels: the fake devices' channels are needed".into());
         }

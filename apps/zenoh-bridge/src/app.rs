@@ -94,6 +94,9 @@ const ECHO_MEMORY: Duration = Duration::from_secs(2);
 /// Messages from the bus that may wait for the bridge (liblcm's queue of the subscription).
 const BUS_QUEUE: usize = 10_000;
 
+/// The most channels carried out (a Zenoh publisher each).
+const MAX_CHANNELS: usize = 4096;
+
 /// The running bridge.
 pub struct Bridge {
     session: zenoh::Session,
@@ -273,6 +276,12 @@ impl Bridge {
                 }
                 let p = match publishers.get(info.channel) {
                     Some(p) => p,
+                    // A publisher a channel: at most MAX_CHANNELS (a bus of ever new names
+                    // grows nothing beyond).
+                    None if publishers.len() >= MAX_CHANNELS => {
+                        lock(&st).counters.bad_names += 1;
+                        return;
+                    }
                     None => {
                         let Some(key) = key_of(&prefix, info.channel) else {
                             return;

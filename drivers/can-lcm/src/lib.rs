@@ -133,6 +133,9 @@ impl std::fmt::Debug for LcmBus<'_> {
 /// Frames a batch holds at most.
 pub const BATCH: usize = 64;
 
+/// Frames that may wait in a bus's inbox for the app (beyond, the oldest are dropped).
+pub const INBOX: usize = 8192;
+
 impl<'a> LcmBus<'a> {
     /// Joins bus `name` on `lcm`.
     pub fn new(lcm: &'a Lcm, name: &str) -> Result<LcmBus<'a>, BusError> {
@@ -141,7 +144,17 @@ impl<'a> LcmBus<'a> {
         let sub = lcm
             .subscribe(&rx_channel(name), move |_, m: CanFrameBatchT| {
                 let mut q = i.lock().unwrap_or_else(|p| p.into_inner());
-                q.extend(m.frames.iter().filter_map(|f| msg_to_frame(f).ok()));
+                // A batch holds at most BATCH frames; the inbox at most INBOX (a controller's
+                // receive queue overflows the same way: the oldest go).
+                q.extend(
+                    m.frames
+                        .iter()
+                        .take(BATCH)
+                        .filter_map(|f| msg_to_frame(f).ok()),
+                );
+                while q.len() > INBOX {
+                    q.pop_front();
+                }
             })
             .map_err(|e| BusError::Device(e.to_string()))?;
         sub.set_queue_capacity(1000)

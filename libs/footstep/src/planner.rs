@@ -126,16 +126,25 @@ pub struct Limits {
     pub max_steps: usize,
     /// The longest budget a request may ask for.
     pub max_budget: Duration,
+    /// The most expansions a request may ask a search for (each holds its successors: the
+    /// search's memory grows with them).
+    pub max_expansions: u64,
+    /// The most obstacles Archie's planners take (the tangent graph grows with their square,
+    /// its search with their cube).
+    pub max_archie_obstacles: usize,
 }
 
 impl Default for Limits {
-    /// 50 m to the goal, a world within 1 km, 1000 steps, a budget of 10 s.
+    /// 50 m to the goal, a world within 1 km, 1000 steps, a budget of 10 s, 2 million
+    /// expansions, 500 obstacles for Archie's planners.
     fn default() -> Limits {
         Limits {
             max_goal_distance: 50.0,
             reach: 1000.0,
             max_steps: 1000,
             max_budget: Duration::from_secs(10),
+            max_expansions: 2_000_000,
+            max_archie_obstacles: 500,
         }
     }
 }
@@ -166,7 +175,20 @@ impl Limits {
                 budget, self.max_budget
             ));
         }
+        if let Some(n) = req.max_expansions.filter(|n| *n > self.max_expansions) {
+            return Err(format!(
+                "{n} expansions asked, more than the {} allowed",
+                self.max_expansions
+            ));
+        }
         world.check_reach(self.reach)?;
+        if req.planner == Which::Archie && world.obstacle.len() > self.max_archie_obstacles {
+            return Err(format!(
+                "{} obstacles, more than the {} Archie's planners take",
+                world.obstacle.len(),
+                self.max_archie_obstacles
+            ));
+        }
         if req.planner != Which::Archie {
             // The footstep planners map the world's extent (with the start and goal) onto a
             // grid: refuse what would not fit before allocating it.

@@ -103,13 +103,20 @@ impl Default for TimingConfig {
     }
 }
 
+/// The longest of a step's times, s: a pattern's samples are sized by them.
+pub const MAX_TIME: f64 = 10.0;
+
 impl TimingConfig {
     /// Checks the parameters.
     pub fn check(&self) -> Result<(), GaitError> {
         let ok = self.t_min.is_finite()
             && self.t_min > 0.0
             && self.t_max >= self.t_min
-            && self.t_max.is_finite()
+            && self.t_max <= MAX_TIME
+            && self.settle <= MAX_TIME
+            && self.rest <= MAX_TIME
+            && self.lead <= MAX_TIME
+            && self.start_shift <= MAX_TIME
             && self.speed.is_finite()
             && self.speed > 0.0
             && (0.0..1.0).contains(&self.double_support)
@@ -127,7 +134,8 @@ impl TimingConfig {
         } else {
             Err(GaitError::Parameter(format!(
                 "timing: need 0 < t_min <= t_max, a positive speed and settle, a double support \
-                 share in [0, 1), a rest, a lead and a start shift >= 0: {self:?}"
+                 share in [0, 1), a rest, a lead and a start shift >= 0, each time at most \
+                 {MAX_TIME} s: {self:?}"
             )))
         }
     }

@@ -77,14 +77,16 @@ impl BodyConfig {
             && self.fall_margin.is_finite()
             && self.fall_time.is_finite()
             && self.fall_time >= 0.0
-            && self.shank_points >= 2;
+            // The body's history and the shank's checks are sized by these.
+            && self.window <= 2.0
+            && (2..=100).contains(&self.shank_points);
         if ok {
             Ok(())
         } else {
             Err(format!(
                 "the body's contact, takeover, window and limit margin must be finite and not \
-                 negative (window positive), the release at least the contact, gravity \
-                 positive, at least 2 shank points: {self:?}"
+                 negative (window positive, at most 2 s), the release at least the contact, \
+                 gravity positive, 2 to 100 shank points: {self:?}"
             ))
         }
     }
