@@ -94,10 +94,17 @@ def profile_url(profile):
     return tomllib.loads(profile.read_text())["lcm_url"]
 
 
-def bridge_config(path, bus, listen, connect):
+def bridge_config(path, bus, listen, connect, certs, name):
+    """A bridge of the link as shipped: TLS both ways with `name`'s certificate from `certs`
+    (scripts/zenoh-certs), the operator's password checked by the robot."""
+    auth = (f'users_file = "{certs}/robot-users.txt"\n' if name == "robot" else
+            f'user = "operator"\npassword_file = "{certs}/operator.password"\n')
     path.write_text(
         f'bus = "{bus}"\nin = ["PERF_.*"]\n[zenoh]\nlisten = {json.dumps(listen)}\n'
-        f'connect = {json.dumps(connect)}\n[[out]]\npattern = "PERF_.*"\n')
+        f'connect = {json.dumps(connect)}\n'
+        f'[zenoh.tls]\nca = "{certs}/ca.pem"\ncertificate = "{certs}/{name}.pem"\n'
+        f'key = "{certs}/{name}-key.pem"\n[zenoh.auth]\n{auth}'
+        f'[[out]]\npattern = "PERF_.*"\n')
 
 
 def perf_runs(hosts, sizes, count, streams):
@@ -149,8 +156,12 @@ def zenoh_bench(count):
     procs = []
     try:
         tmp = Path(tempfile.mkdtemp())
-        bridge_config(tmp / "robot.toml", "robot", ["tcp/10.78.1.2:7447"], [])
-        bridge_config(tmp / "laptop.toml", "laptop", [], ["tcp/10.78.1.2:7447"])
+        certs = tmp / "certs"
+        subprocess.run([ROOT / "scripts" / "zenoh-certs", certs, "10.78.1.2"], check=True,
+                       capture_output=True)
+        bridge_config(tmp / "robot.toml", "robot", ["tls/10.78.1.2:7447"], [], certs, "robot")
+        bridge_config(tmp / "laptop.toml", "laptop", [], ["tls/10.78.1.2:7447"], certs,
+                      "operator")
         for host in ["robot", "laptop"]:
             procs.append(subprocess.Popen(
                 routed.on(host, REL / "stride-zenoh-bridge", "--lcm-url", URL, "--log-level",
