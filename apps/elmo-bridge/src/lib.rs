@@ -830,6 +830,57 @@ mod tests {
         );
     }
 
+    /// D3 of the reliability findings: a bridge's heartbeat said "quick-stopped; automatic:
+    /// the next valid trajectory enables the drives again" while its trajectory status said
+    /// "stride resume, then a valid trajectory". Both say the same thing now, from one place.
+    #[test]
+    fn a_bridges_heartbeat_and_trajectory_status_say_the_same_of_how_it_comes_back() {
+        use std::sync::atomic::AtomicBool;
+        use std::sync::Arc;
+        use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
+        let bus = stride_canbus::MemBus::new(1_000_000);
+        let stop = Arc::new(AtomicBool::new(false));
+        let _drive =
+            FakeElmo::new(ElmoConfig::new(1), Levers::default()).spawn(bus.node(), stop.clone());
+        let cfg: BridgeConfig = toml::from_str(
+            &std::fs::read_to_string(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../../config/robots/archie-left-leg.toml"
+            ))
+            .unwrap(),
+        )
+        .unwrap();
+        let mut master = Master::new(
+            bus.node(),
+            vec![cfg.joint[0].clone()],
+            MasterConfig::default(),
+        )
+        .unwrap();
+        master.bring_up().unwrap();
+        let mut b = Bridge::new(master, 500);
+        let said = |b: &Bridge<_>| {
+            let s = b.status(HeaderT::default(), "left-leg");
+            (s.state, s.reason, s.recovery, b.health().clone())
+        };
+        b.system_stop("operator");
+        let (state, reason, recovery, health) = said(&b);
+        assert_eq!(state, TrajectoryStatusT::STATE_STOPPED);
+        assert_eq!(recovery, RESUME);
+        assert_eq!(
+            health.state,
+            NodeStatusT::STATE_DEGRADED,
+            "an order, not a fault"
+        );
+        assert_eq!(health.detail, format!("{reason}; {recovery}"));
+        b.resume();
+        b.tick(Instant::now());
+        let (state, reason, recovery, health) = said(&b);
+        assert_eq!(state, TrajectoryStatusT::STATE_STOPPED);
+        assert_eq!(recovery, REARM);
+        assert_eq!(health.detail, format!("{reason}; {recovery}"));
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+
     #[test]
     fn states_carry_the_fault_bit_and_the_velocity() {
         let s = state_msg(

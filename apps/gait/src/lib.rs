@@ -404,7 +404,12 @@ pub fn plan_of(msg: &FootstepPlanT) -> Result<Plan, String> {
         let side = match s.foot.side {
             FootT::SIDE_LEFT => Side::Left,
             FootT::SIDE_RIGHT => Side::Right,
-            other => return Err(format!("step {i}: side {other} is neither foot")),
+            other => {
+                return Err(format!(
+                    "step {}: side {other} is neither foot",
+                    s.step_number
+                ))
+            }
         };
         if s.step_number != msg.step_number + 1 + i as i64 {
             return Err(format!(

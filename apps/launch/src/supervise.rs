@@ -1047,4 +1047,25 @@ mod tests {
             "{again:?}"
         );
     }
+
+    /// D7 of the reliability findings: `stride --log-level warn launch` did not reach the
+    /// apps, whose logs were full of INFO lines.
+    #[test]
+    fn the_launchers_log_level_reaches_its_apps() {
+        let mut sup = Supervisor::new(
+            profile(
+                "[[app]]\nname = \"tell\"\ncommand = \"/bin/sh\"\n\
+                 args = [\"-c\", \"echo level=$STRIDE_LOG_LEVEL\"]\nnode = false\n\
+                 restart = \"never\"\n",
+            ),
+            None,
+            None,
+        );
+        sup.set_log_level("warn");
+        run(&mut sup, 5.0, |s| {
+            state(s, "tell").0 == LaunchAppT::STATE_EXITED
+        });
+        let lines = sup.lines();
+        assert!(lines.iter().any(|l| l.text == "level=warn"), "{lines:?}");
+    }
 }

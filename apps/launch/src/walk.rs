@@ -271,3 +271,47 @@ impl Walk {
         (lines, ok)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn counter(n: i64) -> StepCounterT {
+        StepCounterT {
+            step_number: n,
+            ..Default::default()
+        }
+    }
+
+    /// D9 of the reliability findings: after a gait restart the summary said "0 steps, plans
+    /// taken 0" (the new gait's counters) where 12 touch-downs happened.
+    #[test]
+    fn a_walks_summary_counts_its_steps_and_plans_over_a_restarted_gait() {
+        let mut w = Walk::default();
+        for n in 3..=15 {
+            w.counter(&counter(n));
+        }
+        let status = |accepted, refused| TrajectoryStatusT {
+            accepted,
+            refused,
+            ..Default::default()
+        };
+        w.gait_status(status(2, 0));
+        w.gait_status(status(12, 1));
+        // The gait restarted: its counters begin again.
+        for n in 0..=5 {
+            w.counter(&counter(n));
+        }
+        w.gait_status(status(0, 0));
+        w.gait_status(status(4, 0));
+        assert_eq!(w.steps_walked(), 12 + 5);
+        let (lines, _) = w.summary([1.0, 0.0], 0.2, 10.0);
+        assert!(lines[0].ends_with("17 steps"), "{lines:?}");
+        assert!(
+            lines
+                .iter()
+                .any(|l| l.starts_with("plans taken by the gait 16, refused 1")),
+            "{lines:?}"
+        );
+    }
+}

@@ -164,8 +164,14 @@ impl Limits {
         }
         let d = req.start.p().dist(req.goal.p());
         if d > self.max_goal_distance {
+            // Short, whatever the figure (a goal at 1e300 m is not printed in 300 digits).
+            let far = if d < 1e6 {
+                format!("{d:.1}")
+            } else {
+                format!("{d:.3e}")
+            };
             return Err(format!(
-                "the goal is {d:.1} m away, beyond the {} m a plan may reach",
+                "the goal is {far} m away, beyond the {} m a plan may reach",
                 self.max_goal_distance
             ));
         }
