@@ -400,6 +400,8 @@ pub struct GaitApp {
     /// [`GaitApp::urgent_count`] when last asked.
     urgent_seen: u64,
     status_pace: Spaced,
+    /// The status goes out at once, whatever the gap (a plan taken).
+    status_urgent: bool,
     counter_stamper: Stamper,
     status_stamper: Stamper,
     status: TrajectoryStatusT,
@@ -564,6 +566,7 @@ impl GaitApp {
             last_set: vec![None; groups.len()],
             urgent_seen: 0,
             status_pace: Spaced::new(Duration::from_secs(1), STATUS_GAP),
+            status_urgent: false,
             counter_stamper: Stamper::new(""),
             status_stamper: Stamper::new(""),
             status: TrajectoryStatusT {
@@ -1300,6 +1303,9 @@ impl GaitApp {
         if taken > 0 {
             self.status.accepted += taken;
             self.status_changed = true;
+            // A plan taken is said before its first rows go out, whatever the gap (at most
+            // one a tick: one plan is made into a pattern a tick).
+            self.status_urgent = true;
         }
         if let Some(j) = adopt {
             self.adopt(j, t);
@@ -1549,7 +1555,8 @@ impl GaitApp {
 impl GaitApp {
     /// Publishes the status when it changed or is due.
     fn publish_status(&mut self, node: &Node, now: Instant) -> anyhow::Result<()> {
-        if self.status_pace.take(now, self.status_changed) {
+        let urgent = std::mem::take(&mut self.status_urgent);
+        if self.status_pace.take(now, self.status_changed) || urgent {
             self.status_changed = false;
             self.status.header = self.status_stamper.stamp();
             node.publisher()
