@@ -378,6 +378,8 @@ pub struct GaitApp {
     anchored: bool,
     /// The last plan request sent.
     last_request: Option<i64>,
+    /// The last plan taken, as it came (the step it answers, its steps).
+    last_taken: Option<(i64, Vec<stride_lcmtypes::stride::FootstepT>)>,
     /// Refusals' log lines, thinned (a flood of bad plans does not flood the log).
     refusal_log: Throttle,
     /// The rows being played, and the index of the last row sent to the trajectory bridges
@@ -605,6 +607,7 @@ impl GaitApp {
             standing_up: None,
             anchored: false,
             last_request: None,
+            last_taken: None,
             refusal_log: Throttle::new(Duration::from_secs(1)),
             rows: stand,
             sent: None,
@@ -939,6 +942,7 @@ impl GaitApp {
             return;
         }
         tracing::warn!("{why}: the walk stops");
+        self.last_taken = None;
         if let Body::Archie { walker, .. } = &self.body {
             self.restand = Some(stand_from(
                 &walker.pattern().timeline,
@@ -1232,19 +1236,30 @@ impl GaitApp {
                 }
                 _ => {}
             }
+            // The plan taken for this step, again (a copy, a planner that answers twice
+            // alike): it would change nothing.
+            if self
+                .last_taken
+                .as_ref()
+                .is_some_and(|(n, steps)| *n == msg.step_number && *steps == msg.steps)
+            {
+                self.status.dropped += 1;
+                continue;
+            }
             match plan_of(&msg) {
                 // The world's footsteps in the gait's frame.
                 Ok(mut p) => {
                     for s in &mut p.steps {
                         s.place = self.anchor.to_gait(s.place);
                     }
-                    parsed.push(p);
+                    parsed.push((p, msg));
                 }
                 Err(why) => refusals.push(why),
             }
         }
-        let newest = parsed.iter().rposition(|p| Some(p.echo) == wanted);
-        for (i, plan) in parsed.iter().enumerate() {
+        let newest = parsed.iter().rposition(|(p, _)| Some(p.echo) == wanted);
+        let mut last_taken = None;
+        for (i, (plan, msg)) in parsed.iter().enumerate() {
             if Some(plan.echo) == wanted && Some(i) != newest {
                 self.status.dropped += 1;
                 continue;
@@ -1260,6 +1275,7 @@ impl GaitApp {
                     adopt = cache.borrow_mut().take();
                     taken += 1;
                     taken_echo = Some(plan.echo);
+                    last_taken = Some((msg.step_number, msg.steps.clone()));
                 }
                 // Refused, a plan changes nothing: the walk goes on.
                 Verdict::Refused(why) => refusals.push(why),
@@ -1274,10 +1290,11 @@ impl GaitApp {
                 }
             }
         }
-        if walker.tick(
+        let walker_changed = walker.tick(
             on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end),
             &check,
-        ) {
+        );
+        if walker_changed {
             if let Some(j) = cache.borrow_mut().take() {
                 adopt = Some(j);
             } else {
@@ -1297,6 +1314,13 @@ impl GaitApp {
         }
         self.ask_again |= late;
         self.taken_echo = taken_echo.or(self.taken_echo);
+        // The plan a copy of which would change nothing: the one just taken, while the
+        // walker's pattern is still its own (not once the walker changed it by itself).
+        if last_taken.is_some() {
+            self.last_taken = last_taken;
+        } else if walker_changed || stopped {
+            self.last_taken = None;
+        }
         for why in refusals {
             self.refused(why);
         }

@@ -86,7 +86,8 @@ impl SimApp {
             }
         };
         let scene =
-            Scene::load(&scene_path).with_context(|| format!("scene {}", scene_path.display()))?;
+            // The scene's error names its file already ("scene PATH: why", once).
+            Scene::load(&scene_path).map_err(|e| anyhow::anyhow!("scene {e}"))?;
         let robot_path = cfg.relative(file, &cfg.robot_file);
         let robot = Robot::load(cfg.robot, &robot_path)
             .with_context(|| format!("robot file {}", robot_path.display()))?;
