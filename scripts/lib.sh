@@ -56,7 +56,7 @@ bootstrap() {
 
 # The third-party peers of the conformance tests (python-can, python-canopen, dynamixel_sdk),
 # pinned in tests/peers/requirements.txt, in a venv under target/peers; installed again only
-# when the requirements change. Exports STRIDE_PEERS_PYTHON and STRIDE_REQUIRE_PEERS.
+# when the requirements change. Exports STRIDE_PEERS_PYTHON.
 ensure_peers() {
     local venv="$STRIDE_ROOT/target/peers" req="$STRIDE_ROOT/tests/peers/requirements.txt"
     local stamp="$venv/.requirements"
@@ -67,7 +67,7 @@ ensure_peers() {
         "$venv/bin/pip" install -q --disable-pip-version-check -r "$req"
         cp "$req" "$stamp"
     fi
-    export STRIDE_PEERS_PYTHON="$venv/bin/python" STRIDE_REQUIRE_PEERS=1
+    export STRIDE_PEERS_PYTHON="$venv/bin/python"
 }
 
 # Runs a command inside a private network namespace whose only interface is a loopback with a

@@ -712,7 +712,7 @@ fn touchdowns_from(reports: &[(i64, SimReportT)], from: i64) -> Vec<bool> {
 
 #[test]
 #[ignore = "multicast: scripts/test runs it in a private network namespace"]
-fn on_the_split_profile_a_lost_link_stops_the_robot_within_a_step_and_it_stands() {
+fn on_the_split_profile_a_lost_link_stops_the_robot_within_four_touch_downs_and_it_stands() {
     // The Wi-Fi lost mid-walk: the robot walks the step under way and at most the next (the
     // last plan's), then steps in place and stands; with the link back, the gait's requests
     // reach the planner again and the walk goes on to its goal.

@@ -1,5 +1,6 @@
 //! The ZMP check on the plans of every shipped scene: each scene planned by its improved
-//! planner, the plan walked from standing by both generators (preview control, and the foot
+//! planner (to an expansion cap, not a time budget, so what is checked is the same on any
+//! machine), the plan walked from standing by both generators (preview control, and the foot
 //! placement with its default 5 cm limit on moving a footstep), the ZMP kept a centimetre
 //! inside the support polygon (step times stretched where needed); Archie's plans also
 //! through Archie's legs within their limits.
@@ -10,30 +11,46 @@ use stride_gait::pattern::{Kind, Pattern, PatternConfig};
 use stride_gait::timeline::Phase;
 
 /// The smallest margin of a pattern's cart-table ZMP in its support polygon, worked out here
-/// from the samples alone, sharing no code with the generator's own check: the ZMP
-/// p = x − (z_c/g)·ẍ from each sample's COM, the soles' corners from the feet on the ground
-/// (the stance sole in single support, both in double), and the distance to the nearest edge
-/// of their convex hull, an edge being a pair of corners with every other corner on its
-/// inner side (brute force, against the generator's monotone chain).
-fn margin_by_hand(p: &Pattern, cfg: &PatternConfig) -> f64 {
+/// from the samples' COM positions alone, sharing no model with the generator: the COM's
+/// acceleration by central finite differences of its positions, the ZMP
+/// p = x − (z_c/g)·ẍ, and its distance to the nearest edge of the soles' convex hull, an
+/// edge being a pair of corners with every other corner on its inner side (brute force,
+/// against the generator's monotone chain). Returns the margin and its time.
+///
+/// The soles are those on the ground at any of the three samples the difference spans (the
+/// stance sole in single support, both in double): the second difference is the mean of
+/// the acceleration over that span, weighted by a triangle, so its ZMP is a weighted mean of
+/// the ZMPs of the span, each inside the soles on the ground at its instant; at a support
+/// exchange between two samples (the foot placement generator's, which has no double
+/// support) both soles bear the body at the exchange. No other slack: elsewhere the sole is
+/// the stance sole alone.
+fn margin_by_hand(p: &Pattern, cfg: &PatternConfig) -> (f64, f64) {
     let k = cfg.z_c / cfg.g;
     let (l, w) = (cfg.sole.length / 2.0, cfg.sole.width / 2.0);
-    let mut worst = f64::INFINITY;
-    for s in &p.samples {
-        let zmp = [
-            s.com.x.x[0] - k * s.com.x.x[2],
-            s.com.y.x[0] - k * s.com.y.x[2],
-        ];
-        let on: Vec<usize> = match s.phase {
-            Phase::Single { swing, .. } => vec![swing.other().index()],
-            Phase::Double { .. } => vec![0, 1],
+    let mut worst = (f64::INFINITY, 0.0);
+    for i in 1..p.samples.len().saturating_sub(1) {
+        let (a, s, b) = (&p.samples[i - 1], &p.samples[i], &p.samples[i + 1]);
+        let (h0, h1) = (s.t - a.t, b.t - s.t);
+        // The second derivative through three samples, their spacing as sampled.
+        let acc = |x0: f64, x1: f64, x2: f64| {
+            2.0 * (h0 * x2 - (h0 + h1) * x1 + h1 * x0) / (h0 * h1 * (h0 + h1))
         };
+        let zmp = [
+            s.com.x.x[0] - k * acc(a.com.x.x[0], s.com.x.x[0], b.com.x.x[0]),
+            s.com.y.x[0] - k * acc(a.com.y.x[0], s.com.y.x[0], b.com.y.x[0]),
+        ];
         let mut corners = Vec::new();
-        for f in on {
-            let [x, y, _, yaw] = s.feet[f][0];
-            let (sn, cs) = yaw.sin_cos();
-            for (a, b) in [(l, w), (-l, w), (-l, -w), (l, -w)] {
-                corners.push([x + cs * a - sn * b, y + sn * a + cs * b]);
+        for q in [a, s, b] {
+            let on: Vec<usize> = match q.phase {
+                Phase::Single { swing, .. } => vec![swing.other().index()],
+                Phase::Double { .. } => vec![0, 1],
+            };
+            for f in on {
+                let [x, y, _, yaw] = q.feet[f][0];
+                let (sn, cs) = yaw.sin_cos();
+                for (a, b) in [(l, w), (-l, w), (-l, -w), (l, -w)] {
+                    corners.push([x + cs * a - sn * b, y + sn * a + cs * b]);
+                }
             }
         }
         let mut margin = f64::INFINITY;
@@ -52,7 +69,9 @@ fn margin_by_hand(p: &Pattern, cfg: &PatternConfig) -> f64 {
                 }
             }
         }
-        worst = worst.min(margin);
+        if margin < worst.0 {
+            worst = (margin, s.t);
+        }
     }
     worst
 }
@@ -65,23 +84,18 @@ fn every_shipped_scenes_plan_keeps_its_zmp_inside() {
     for kind in [Kind::Preview, Kind::FootPlacement] {
         let g = common::generator(kind);
         for walk in &walks {
-            let w = match walk {
-                Ok(w) => w,
-                Err((name, why)) => {
-                    rows.push(format!("{name}: {why} (no steps to walk)"));
-                    continue;
-                }
-            };
+            let Ok(w) = walk else { continue };
             let start = g.standing(0.0, w.feet.0, w.feet.1);
             let pat = g
                 .plan(&start, &w.steps)
                 .unwrap_or_else(|e| panic!("{kind:?}, {}: {e}", w.name));
             let (m, t) = pat.min_margin();
             assert!(m >= 0.01, "{kind:?}, {}: margin {m} at {t}", w.name);
-            let by_hand = margin_by_hand(&pat, g.config());
+            let (by_hand, at) = margin_by_hand(&pat, g.config());
             assert!(
-                by_hand >= 0.01 && (by_hand - m).abs() < 1e-6,
-                "{kind:?}, {}: margin {m} by the generator, {by_hand} worked out here",
+                by_hand >= 0.01,
+                "{kind:?}, {}: margin {by_hand} at {at} from the COM's positions ({m} by the \
+                 generator's own state)",
                 w.name
             );
             let stretched = common::stretched(&g, &pat, &w.steps);
@@ -94,8 +108,8 @@ fn every_shipped_scenes_plan_keeps_its_zmp_inside() {
                 "ZMP only (not Archie's plan)".to_string()
             };
             rows.push(format!(
-                "{kind:?}, {}: {} steps, {:.1} s, smallest margin {m:.4} m, {stretched} \
-                 stretched, {joints}",
+                "{kind:?}, {}: {} steps, {:.1} s, smallest margin {by_hand:.4} m ({m:.4} m by \
+                 the generator), {stretched} stretched, {joints}",
                 w.name,
                 w.steps.len(),
                 pat.timeline.end - pat.timeline.start
@@ -103,5 +117,17 @@ fn every_shipped_scenes_plan_keeps_its_zmp_inside() {
         }
     }
     eprintln!("{}", rows.join("\n"));
-    assert!(rows.len() >= 70, "{}", rows.len());
+    // Every scene plans but the one built to be refused: a scene that stops planning fails.
+    let refused: Vec<String> = walks
+        .iter()
+        .filter_map(|w| w.as_ref().err())
+        .map(|(name, why)| format!("{name}: {why}"))
+        .collect();
+    assert_eq!(
+        refused,
+        ["kaist-b9: goal outside map"],
+        "scenes that did not plan"
+    );
+    assert_eq!(rows.len(), 2 * (walks.len() - 1), "{}", rows.len());
+    assert!(walks.len() >= 36, "{} scenes", walks.len());
 }

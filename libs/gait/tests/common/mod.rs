@@ -101,11 +101,14 @@ pub struct SceneWalk {
     pub steps: Vec<Footstep>,
 }
 
+/// The expansions each scene's search may make.
+pub const SCENE_EXPANSIONS: u64 = 60_000;
+
 /// Every shipped scene (config/scenes/{archie,kaist,lola}) planned by its improved planner:
 /// the walk, or the scene's name and why there is none.
 pub fn scene_walks() -> Vec<Result<SceneWalk, (String, String)>> {
     use stride_footstep::plan::{Foot, Status};
-    use stride_footstep::planner::{for_scene, plan, scene_request, Which};
+    use stride_footstep::planner::{for_scene, plan_within, scene_request, Limits, Which};
     use stride_footstep::scene::Scene;
     let place = |f: &Foot| [f.p.x, f.p.y, f.z, f.yaw];
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes");
@@ -124,7 +127,20 @@ pub fn scene_walks() -> Vec<Result<SceneWalk, (String, String)>> {
             if which == Which::Archie {
                 req.max_step = Some(0.25);
             }
-            let p = plan(&req, &scene, std::time::Duration::from_millis(300));
+            // An expansion cap, not a time budget: the same plans on any machine, loaded or
+            // not (the cap is several times what the slowest scene's first plan takes).
+            req.max_expansions = Some(SCENE_EXPANSIONS);
+            let limits = Limits {
+                max_budget: std::time::Duration::from_secs(3600),
+                ..Limits::default()
+            };
+            let p = plan_within(
+                &req,
+                &scene,
+                limits.max_budget,
+                &limits,
+                &stride_footstep::plan::Cancel::new(),
+            );
             if !matches!(p.status, Status::Ok | Status::Partial) || p.steps.len() < 3 {
                 out.push(Err((scene.name.clone(), p.status.name().to_string())));
                 continue;
