@@ -297,3 +297,59 @@ fn segmented_sdo_frames_are_python_canopens() {
         assert_eq!(got, text, "{name}");
     }
 }
+
+#[test]
+fn the_preview_controllers_gains_equal_numpys_riccati_solution() {
+    // The gains of the ZMP preview controller (integral, state, and the N preview gains),
+    // computed by the Rust controller and by an independent NumPy program (the discrete
+    // Riccati equation iterated to convergence, the published way), for Archie's COM height
+    // and another, at the shipped period, weights and horizon.
+    use stride_gait::preview::{Preview, PreviewConfig};
+    let Some(py) = python() else { return };
+    let numpy =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../libs/gait/benches/preview_numpy.py");
+    let cfg = PreviewConfig::default();
+    for z_c in [0.6, 0.4] {
+        let rust = Preview::new(cfg, z_c, 9.80665).unwrap();
+        let mut c = Command::new(&py);
+        c.arg(&numpy).args([
+            "--gains",
+            &format!("--z-c={z_c}"),
+            &format!("--horizon={}", cfg.horizon),
+            &format!("--dt={}", cfg.period),
+            &format!("--q-e={}", cfg.q_e),
+            &format!("--r={}", cfg.r),
+        ]);
+        let (status, out) = Proc::spawn(c).wait(Duration::from_secs(120));
+        assert!(status.success(), "{out}");
+        let line = out.lines().find(|l| l.starts_with('{')).expect(&out);
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        let num = |v: &serde_json::Value| v.as_f64().unwrap();
+        let (gi, gx) = rust.gains();
+        let gp = rust.preview_gains();
+        let np_gp: Vec<f64> = v["gp"].as_array().unwrap().iter().map(num).collect();
+        assert_eq!(gp.len(), np_gp.len(), "z_c {z_c}: N");
+        let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-7 * scale;
+        assert!(
+            close(gi, num(&v["gi"]), gi.abs()),
+            "z_c {z_c}: G_i {gi} against {}",
+            v["gi"]
+        );
+        for (i, g) in gx.iter().enumerate() {
+            let n = num(&v["gx"][i]);
+            assert!(close(*g, n, g.abs()), "z_c {z_c}: G_x[{i}] {g} against {n}");
+        }
+        let scale = np_gp.iter().fold(0.0f64, |m, g| m.max(g.abs()));
+        for (j, (a, b)) in gp.iter().zip(&np_gp).enumerate() {
+            assert!(
+                close(*a, *b, scale),
+                "z_c {z_c}: G_p({}) {a} against {b}",
+                j + 1
+            );
+        }
+        eprintln!(
+            "z_c {z_c}: G_i {gi:.6}, G_x {gx:?}, {} preview gains equal",
+            gp.len()
+        );
+    }
+}

@@ -4,6 +4,7 @@ preview terms and the cart-table update. Prints the time per tick (x and y) of a
 reference; `scripts/bench gait` runs it beside the Rust controller."""
 
 import argparse
+import json
 import time
 
 import numpy as np
@@ -29,8 +30,10 @@ def gains(dt, z_c, g, n, q_e=1.0, r=1e-6):
     s = r + b1.T @ p @ b1
     k = np.linalg.solve(s, b1.T @ p @ a1)
     gi, gx = k[0, 0], k[0, 1:]
+    # The reference enters the integral as -I1 r(k+1): the optimal feedforward on r(k+j) is
+    # G_p(j) = -S^-1 B1' (Ac')^(j-1) P I1, so that G_p(1) = -G_i.
     ac = a1 - b1 @ k
-    x = -ac.T @ p @ i1
+    x = p @ i1
     gp = np.zeros(n)
     for j in range(n):
         gp[j] = -np.linalg.solve(s, b1.T @ x)[0, 0]
@@ -52,10 +55,17 @@ def main():
     ap.add_argument("--z-c", type=float, default=0.4)
     ap.add_argument("--ticks", type=int, default=4000)
     ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--dt", type=float, default=0.005)
+    ap.add_argument("--q-e", type=float, default=1.0)
+    ap.add_argument("--r", type=float, default=1e-6)
+    ap.add_argument("--gains", action="store_true", help="print the gains as JSON, run nothing")
     args = ap.parse_args()
-    dt, g = 0.005, 9.80665
+    dt, g = args.dt, 9.80665
     n = int(round(args.horizon / dt))
-    a, b, c, gi, gx, gp = gains(dt, args.z_c, g, n)
+    a, b, c, gi, gx, gp = gains(dt, args.z_c, g, n, args.q_e, args.r)
+    if args.gains:
+        print(json.dumps({"gi": gi, "gx": list(gx), "gp": list(gp)}))
+        return
     refs = reference(dt, args.ticks, n + 1)
     best = []
     for _ in range(args.rounds):
