@@ -1,6 +1,8 @@
 //! The KAIST search on the notes' scenarios (C.4) and requirements (C.2). Expansion caps, not
 //! time budgets, bound the runs, so results do not depend on the machine.
 
+mod common;
+
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -10,7 +12,7 @@ use stride_footstep::kaist::search::{
     plan, successors, ActionSet, Feasibility, Heuristic, Mode, Settings, World,
 };
 use stride_footstep::kaist::CostParams;
-use stride_footstep::plan::{Foot, Least, Plan, Status};
+use stride_footstep::plan::{Foot, Plan, Status};
 use stride_footstep::scene::Scene;
 
 fn scene(name: &str) -> Scene {
@@ -483,51 +485,6 @@ fn b7_closed_loop_with_a_person_stepping_in() {
     );
 }
 
-/// A plain Dijkstra over the planner's successors (its lattice of candidate steps and its
-/// feasibility checks, asked with the real goal) with the lattice's duplicate detection and
-/// no heuristic, no weights, no scouting, no strides and no cap: the least cost of bringing the
-/// centre within the tolerance of `goal` from the robot standing at `start` (the right foot
-/// to swing first, as [`plan`]). Shares none of the planner's search.
-fn dijkstra(world: &World, s: &Settings, start: V2, yaw: f64, goal: V2) -> Option<(f64, u64)> {
-    use std::collections::{BinaryHeap, HashMap};
-    let (cell, yaw_cell) = (s.lattice.0, s.lattice.1.to_radians());
-    let key = |f: &Foot| {
-        (
-            (f.p.x / cell).round() as i64,
-            (f.p.y / cell).round() as i64,
-            (stride_footstep::geom::wrap(f.yaw) / yaw_cell).round() as i64,
-            f.left,
-        )
-    };
-    let (mut left, mut right) = Foot::standing(start, yaw, s.cost.w_nom);
-    for f in [&mut left, &mut right] {
-        f.z = world.foothold(f, world.grid.height(f.p), &s.feasibility)?;
-    }
-    let mut states = vec![(left, right)];
-    let mut best = HashMap::from([(key(&left), 0.0)]);
-    let mut heap = BinaryHeap::from([Least(0.0, 0)]);
-    let mut expanded = 0u64;
-    while let Some(Least(g, i)) = heap.pop() {
-        let (stance, other) = states[i];
-        if best.get(&key(&stance)).is_some_and(|&b| g > b) {
-            continue;
-        }
-        if ((stance.p + other.p) * 0.5).dist(goal) < s.tolerance {
-            return Some((g, expanded));
-        }
-        expanded += 1;
-        for (f, c) in successors(world, s, goal, stance, other) {
-            let c = g + c;
-            if best.get(&key(&f)).is_none_or(|&b| c < b) {
-                best.insert(key(&f), c);
-                states.push((f, stance));
-                heap.push(Least(c, states.len() - 1));
-            }
-        }
-    }
-    None
-}
-
 /// "Optimal (bound 1)" checked, not taken from the planner: on small scenes the improved
 /// plan costs what a plain exhaustive search finds ([`dijkstra`]).
 #[test]
@@ -537,7 +494,7 @@ fn an_improved_plan_with_bound_1_costs_what_dijkstra_finds() {
         assert_eq!(i.bound, Some(1.0), "{name}: {}", i.detail);
         let sc = scene(name);
         let st = settings(Mode::Improved, &sc);
-        let (d, expanded) = dijkstra(&w, &st, sc.start.p(), sc.start.yaw, sc.goal.p())
+        let (d, expanded) = common::dijkstra(&w, &st, sc.start.p(), sc.start.yaw, sc.goal.p())
             .unwrap_or_else(|| panic!("{name}: no way found"));
         // No heuristic: it expands far more than the guided search.
         assert!(

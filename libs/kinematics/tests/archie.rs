@@ -26,8 +26,10 @@ fn close(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 }
 
 /// Script angles θ0..θ11; the pelvis (position, rotation) in the right sole's frame; the
-/// left sole's origin there. Computed by an independent DH-chain program from the thesis's
-/// Table 4 and Table 3 with the script's numbers.
+/// left sole's origin there. Computed by `tests/golden/archie_poe.py`, which shares no code
+/// with this crate: the product of exponentials of the twelve joints' twists, from the
+/// right sole up one leg and down the other, the axes written from the thesis's Tables 3
+/// and 4 and the signs of `Stepping.sce` (the test below runs it).
 #[allow(clippy::type_complexity)]
 const GOLDEN: [([f64; 12], [f64; 3], [[f64; 3]; 3], [f64; 3]); 5] = [
     // G1: zero
@@ -96,6 +98,24 @@ const GOLDEN: [([f64; 12], [f64; 3], [[f64; 3]; 3], [f64; 3]); 5] = [
         [-0.2638257302124077, 0.3828886771140515, 0.1483180142043473],
     ),
 ];
+
+#[test]
+fn the_golden_vectors_are_what_the_independent_program_computes() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests");
+    let out = std::process::Command::new("python3")
+        .arg(dir.join("golden/archie_poe.py"))
+        .arg("--check")
+        .arg(dir.join("archie.rs"))
+        .output()
+        .expect("python3 (scripts/setup installs it)");
+    let text =
+        String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{text}");
+    assert!(
+        text.contains("all 135 numbers of 5 entries agree"),
+        "{text}"
+    );
+}
 
 #[test]
 fn forward_kinematics_meets_the_golden_vectors() {

@@ -676,16 +676,15 @@ fn pass(
                 g: g + c,
                 parent: None,
             };
-            if lattice {
-                let k = key(&f);
-                if best_g.get(&k).is_some_and(|&g| g <= child.g) {
-                    continue;
-                }
-                best_g.insert(k, child.g);
+            if lattice && best_g.get(&key(&f)).is_some_and(|&g| g <= child.g) {
+                continue;
             }
             let hc = h_known.unwrap_or_else(|| pr.h(&child));
             if child.g + hc >= incumbent {
                 continue;
+            }
+            if lattice {
+                best_g.insert(key(&f), child.g);
             }
             for mut m in inner {
                 m.parent = Some(parent);
