@@ -111,14 +111,28 @@ def pdo():
         c.equal(f"TPDO1 remapped by canopen to {[hex(i) for i in mapping]}",
                 [v.index for v in drive.tpdo[1].map], mapping)
     drive.nmt.state = "OPERATIONAL"
-    count = [0]
+    count, syncs = [0], [0]
     drive.tpdo[1].add_callback(lambda m: count.__setitem__(0, count[0] + 1))
+    # The SYNCs counted as they pass on the bus, not from the wall clock: a loaded machine
+    # sends fewer than 50 in 0.5 s, and the drive answers each one it gets.
+    net.subscribe(0x80, lambda *_: syncs.__setitem__(0, syncs[0] + 1))
     net.sync.start(0.01)
     time.sleep(0.5)
-    c.check("TPDO1 on every SYNC (10 ms)", 40 <= count[0] <= 55, count[0])
+    net.sync.stop()
+    time.sleep(0.1)
+    c.check("TPDO1 on every SYNC (10 ms)", syncs[0] >= 10 and count[0] == syncs[0],
+            f"{count[0]} TPDOs for {syncs[0]} SYNCs")
+    net.sync.start(0.01)
 
 
 def ds402():
+    # python-canopen waits 0.2 to 0.8 s for a drive's answer; on a loaded test machine the
+    # fake's process (or this one) may not run for that long. The checks are of what the
+    # drive answers, not how fast: wait as long as a busy machine may need.
+    for name in ("TIMEOUT_CHECK_TPDO", "TIMEOUT_SWITCH_STATE_SINGLE", "TIMEOUT_RESET_FAULT",
+                 "TIMEOUT_SWITCH_OP_MODE"):
+        setattr(drive, name, 5.0)
+    drive.TIMEOUT_SWITCH_STATE_FINAL = 10.0
     drive.setup_402_state_machine(read_pdos=False)
     for state in ("READY TO SWITCH ON", "SWITCHED ON", "OPERATION ENABLED", "QUICK STOP ACTIVE",
                   "SWITCH ON DISABLED", "OPERATION ENABLED"):
