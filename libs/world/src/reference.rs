@@ -69,16 +69,74 @@ pub fn point_inside(x: P, poly: &[P]) -> bool {
 }
 
 /// The shortest path from `s` to `g` among the polygons, or `None` when there is none.
+///
+/// A shortest path among convex polygons bends only at vertices where it touches its polygon
+/// from outside (the reduced visibility graph): an edge into a vertex whose two neighbours on
+/// its polygon lie strictly on either side of the edge's line is never needed, and is not
+/// tried. A polygon whose bounding circle the segment misses is not clipped.
 pub fn shortest(s: P, g: P, polys: &[Vec<P>]) -> Option<f64> {
     let inside = |x: P| polys.iter().any(|p| point_inside(x, p));
-    let mut nodes = vec![s, g];
-    for p in polys {
-        nodes.extend(p.iter().copied().filter(|&v| !inside(v)));
+    // Each node, and the polygon and index it is a vertex of.
+    let mut nodes: Vec<(P, Option<(usize, usize)>)> = vec![(s, None), (g, None)];
+    for (i, p) in polys.iter().enumerate() {
+        nodes.extend(
+            p.iter()
+                .enumerate()
+                .filter(|(_, &v)| !inside(v))
+                .map(|(k, &v)| (v, Some((i, k)))),
+        );
     }
+    // Each polygon's bounding circle.
+    let circles: Vec<(P, f64)> = polys
+        .iter()
+        .map(|p| {
+            let n = p.len() as f64;
+            let c = (
+                p.iter().map(|v| v.0).sum::<f64>() / n,
+                p.iter().map(|v| v.1).sum::<f64>() / n,
+            );
+            let r = p
+                .iter()
+                .map(|v| (v.0 - c.0).hypot(v.1 - c.1))
+                .fold(0.0, f64::max);
+            (c, r)
+        })
+        .collect();
+    let near = |a: P, b: P, (c, r): (P, f64)| {
+        let d = (b.0 - a.0, b.1 - a.1);
+        let l2 = d.0 * d.0 + d.1 * d.1;
+        let t = if l2 > 0.0 {
+            (((c.0 - a.0) * d.0 + (c.1 - a.1) * d.1) / l2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (a.0 + t * d.0 - c.0).hypot(a.1 + t * d.1 - c.1) < r + 1e-6
+    };
     let n = nodes.len();
-    let free = |i: usize, j: usize| !polys.iter().any(|p| enters(nodes[i], nodes[j], p));
+    let free = |i: usize, j: usize| {
+        let (a, b) = (nodes[i].0, nodes[j].0);
+        !polys
+            .iter()
+            .zip(&circles)
+            .any(|(p, &c)| near(a, b, c) && enters(a, b, p))
+    };
+    // Whether the edge from `u` can bend at vertex `v` (it touches v's polygon there).
+    let tangent = |u: usize, v: usize| match nodes[v].1 {
+        None => true,
+        Some((i, k)) => {
+            let p = &polys[i];
+            let (a, b) = (nodes[u].0, nodes[v].0);
+            let side = |x: P| (b.0 - a.0) * (x.1 - a.1) - (b.1 - a.1) * (x.0 - a.0);
+            let (l, r) = (
+                side(p[(k + p.len() - 1) % p.len()]),
+                side(p[(k + 1) % p.len()]),
+            );
+            !(l > 1e-12 && r < -1e-12 || l < -1e-12 && r > 1e-12)
+        }
+    };
     let dist = |i: usize, j: usize| {
-        ((nodes[i].0 - nodes[j].0).powi(2) + (nodes[i].1 - nodes[j].1).powi(2)).sqrt()
+        let (a, b) = (nodes[i].0, nodes[j].0);
+        (a.0 - b.0).hypot(a.1 - b.1)
     };
     let mut best = vec![f64::INFINITY; n];
     let mut done = vec![false; n];
@@ -95,7 +153,7 @@ pub fn shortest(s: P, g: P, polys: &[Vec<P>]) -> Option<f64> {
         }
         done[u] = true;
         for v in 0..n {
-            if !done[v] && best[u] + dist(u, v) < best[v] && free(u, v) {
+            if !done[v] && best[u] + dist(u, v) < best[v] && tangent(u, v) && free(u, v) {
                 best[v] = best[u] + dist(u, v);
             }
         }

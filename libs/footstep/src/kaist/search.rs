@@ -683,6 +683,8 @@ fn pass(
             if child.g + hc >= incumbent {
                 continue;
             }
+            // Only a state kept holds its cell: one pruned by the incumbent would shut out
+            // a dearer state there whose heuristic is lower.
             if lattice {
                 best_g.insert(key(&f), child.g);
             }

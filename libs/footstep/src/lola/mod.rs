@@ -801,78 +801,7 @@ pub fn plan_from(
             stats,
         );
     }
-    // The 2-D pre-planner: a distance field over the tall obstacles, grown by the margin.
-    let coupled = s.couple_heuristic || s.couple_heading || s.corridor.is_some();
-    // The thesis's pre-planner: its cheapest way by Eq. 4.17.
-    let way = (coupled && s.preplanner == PrePlanner::Thesis)
-        .then(|| {
-            let (tall, small) = world.reduced(r.h_max);
-            let reduced = Reduced {
-                tall: &tall,
-                small: &small,
-                map: world.map,
-            };
-            let params = preplan::Params {
-                l_d: s.desired.0,
-                ..Default::default()
-            };
-            preplan(mid(&stance, r.width), goal, &reduced, &params)
-                .into_iter()
-                .next()
-        })
-        .flatten();
-    // A map too large for a grid has no field (the planner refuses such worlds first).
-    let field = (coupled && s.preplanner == PrePlanner::Field)
-        .then(|| Grid::flat(world.map.0, world.map.1, 0.05).ok())
-        .flatten()
-        .map(|mut g| {
-            // The reduced map: the obstacles too tall to step over (surfaces' edges are not
-            // obstacles here).
-            let tall: Vec<&Thing> = world
-                .things
-                .iter()
-                .filter(|t| !t.edge && t.top - t.aabb.mins.z.max(0.0) > r.h_max)
-                .collect();
-            // Cells within the heading margin hold 1, within the margin 2.
-            let near = |p: V2, grow: f64| {
-                tall.iter().any(|t| {
-                    t.aabb.mins.x - grow <= p.x
-                        && p.x <= t.aabb.maxs.x + grow
-                        && t.aabb.mins.y - grow <= p.y
-                        && p.y <= t.aabb.maxs.y + grow
-                        && t.solid.footprint_distance(p) < grow
-                })
-            };
-            let wide = s.couple_heading && s.heading_margin > s.margin;
-            if wide {
-                g.paint(|p| near(p, s.heading_margin), |_| 1.0);
-            }
-            g.paint(|p| near(p, s.margin), |_| 2.0);
-            let d = g.distance_field(goal, |h| h < 2.0);
-            let heading = wide.then(|| g.distance_field(goal, |h| h == 0.0));
-            // Coupling 2: the distance from the way the robot's centre would take.
-            // (None when the centre has no way: the corridor is then off.)
-            let corridor = s.corridor.and_then(|_| {
-                let way = g.way(&d, (stance.p + swing.p) * 0.5, f64::INFINITY);
-                (!way.is_empty()).then(|| g.distance_from(&way, |_| true))
-            });
-            Field {
-                grid: g,
-                dist: d,
-                heading,
-                corridor,
-            }
-        });
-    let pr = Problem {
-        world,
-        s,
-        goal,
-        goal_yaw,
-        steps: suggestions(s.reduced),
-        field,
-        way,
-        snap: mode == Mode::Improved,
-    };
+    let pr = problem(world, s, &stance, &swing, goal, goal_yaw, mode);
     stats.prepare = t0.elapsed();
     let t1 = Instant::now();
     let deadline = t1 + s.budget;
@@ -922,15 +851,10 @@ pub fn plan_from(
         _ => "no foothold sequence reaches the goal",
     };
     stats.search = t1.elapsed();
-    let (nodes, last, status, bound) = match found {
-        Some((nodes, i, status, w)) => (
-            nodes,
-            i,
-            status,
-            (status == Status::Ok && w.is_finite()).then_some(w),
-        ),
+    let (nodes, last, status) = match found {
+        Some((nodes, i, status, _)) => (nodes, i, status),
         // The deadline: the best partial plan (improved mode), or steps in place.
-        None if lattice && best.2 != 0 => (best.1, best.2, Status::Partial, None),
+        None if lattice && best.2 != 0 => (best.1, best.2, Status::Partial),
         None => {
             let steps = in_place(swing, stance);
             return Plan {
@@ -964,7 +888,148 @@ pub fn plan_from(
         cost: nodes[last].g,
         steps: feet,
         stats,
-        bound: bound.filter(|_| lattice),
+        // No bound: the heuristic (the thesis's Eq. 4.16, the pre-planner's way coupled in)
+        // is not a lower bound of the cost to go. A turning step swings the feet's midpoint
+        // by half the stance width times the turn, which its cost does not count, and at the
+        // goal's tolerance it is not zero (libs/footstep/tests/lola.rs measures both).
+        bound: None,
+    }
+}
+
+/// The search's problem for a search from `stance` and `swing` (with their heights) to the
+/// goal pose: the pre-planner's way or distance fields, the suggestions.
+fn problem<'a>(
+    world: &'a World,
+    s: &'a Settings,
+    stance: &Foot,
+    swing: &Foot,
+    goal: V2,
+    goal_yaw: f64,
+    mode: Mode,
+) -> Problem<'a> {
+    let r = &s.robot;
+    // The 2-D pre-planner: a distance field over the tall obstacles, grown by the margin.
+    let coupled = s.couple_heuristic || s.couple_heading || s.corridor.is_some();
+    // The thesis's pre-planner: its cheapest way by Eq. 4.17.
+    let way = (coupled && s.preplanner == PrePlanner::Thesis)
+        .then(|| {
+            let (tall, small) = world.reduced(r.h_max);
+            let reduced = Reduced {
+                tall: &tall,
+                small: &small,
+                map: world.map,
+            };
+            let params = preplan::Params {
+                l_d: s.desired.0,
+                ..Default::default()
+            };
+            preplan(mid(stance, r.width), goal, &reduced, &params)
+                .into_iter()
+                .next()
+        })
+        .flatten();
+    // A map too large for a grid has no field (the planner refuses such worlds first).
+    let field = (coupled && s.preplanner == PrePlanner::Field)
+        .then(|| Grid::flat(world.map.0, world.map.1, 0.05).ok())
+        .flatten()
+        .map(|mut g| {
+            // The reduced map: the obstacles too tall to step over (surfaces' edges are not
+            // obstacles here).
+            let tall: Vec<&Thing> = world
+                .things
+                .iter()
+                .filter(|t| !t.edge && t.top - t.aabb.mins.z.max(0.0) > r.h_max)
+                .collect();
+            // Cells within the heading margin hold 1, within the margin 2.
+            let near = |p: V2, grow: f64| {
+                tall.iter().any(|t| {
+                    t.aabb.mins.x - grow <= p.x
+                        && p.x <= t.aabb.maxs.x + grow
+                        && t.aabb.mins.y - grow <= p.y
+                        && p.y <= t.aabb.maxs.y + grow
+                        && t.solid.footprint_distance(p) < grow
+                })
+            };
+            let wide = s.couple_heading && s.heading_margin > s.margin;
+            if wide {
+                g.paint(|p| near(p, s.heading_margin), |_| 1.0);
+            }
+            g.paint(|p| near(p, s.margin), |_| 2.0);
+            let d = g.distance_field(goal, |h| h < 2.0);
+            let heading = wide.then(|| g.distance_field(goal, |h| h == 0.0));
+            // Coupling 2: the distance from the way the robot's centre would take.
+            // (None when the centre has no way: the corridor is then off.)
+            let corridor = s.corridor.and_then(|_| {
+                let way = g.way(&d, (stance.p + swing.p) * 0.5, f64::INFINITY);
+                (!way.is_empty()).then(|| g.distance_from(&way, |_| true))
+            });
+            Field {
+                grid: g,
+                dist: d,
+                heading,
+                corridor,
+            }
+        });
+    Problem {
+        world,
+        s,
+        goal,
+        goal_yaw,
+        steps: suggestions(s.reduced),
+        field,
+        way,
+        snap: mode == Mode::Improved,
+    }
+}
+
+/// The search's heuristic and successors for a search from `stance` and `swing` to the goal
+/// pose, exposed so that tests can check them against exhaustive searches.
+pub struct Probe<'a>(Problem<'a>);
+
+impl<'a> Probe<'a> {
+    /// The probe of a search from `stance` and `swing` (their heights looked up) to the goal
+    /// pose in `mode`; `None` when a foot of the start has no foothold.
+    pub fn new(
+        (stance, swing): (Foot, Foot),
+        goal: V2,
+        goal_yaw: f64,
+        world: &'a World,
+        mode: Mode,
+        s: &'a Settings,
+    ) -> Option<Probe<'a>> {
+        let mut stats = Stats::default();
+        let (mut stance, mut swing) = (stance, swing);
+        for f in [&mut stance, &mut swing] {
+            f.z = world.foothold(f, &s.robot, &mut stats)?;
+        }
+        Some(Probe(problem(
+            world, s, &stance, &swing, goal, goal_yaw, mode,
+        )))
+    }
+
+    /// The heuristic of the node whose stance foot is `f`.
+    pub fn h(&self, f: &Foot) -> f64 {
+        self.0.h(f)
+    }
+
+    /// The feet the search steps to from `stance` (the other foot at `other`), each with the
+    /// step's cost.
+    pub fn successors(&self, stance: Foot, other: Foot) -> Vec<(Foot, f64)> {
+        let n = Node {
+            stance,
+            other,
+            g: 0.0,
+            depth: 0,
+            parent: None,
+        };
+        self.0.successors(&n, &mut Stats::default())
+    }
+
+    /// Whether a node whose stance foot is `f` is at the goal (within the tolerances).
+    pub fn at_goal(&self, f: &Foot) -> bool {
+        let s = self.0.s;
+        mid(f, s.robot.width).dist(self.0.goal) < s.tolerance.0
+            && wrap(f.yaw - self.0.goal_yaw).abs() < s.tolerance.1
     }
 }
 
@@ -1054,16 +1119,17 @@ fn pass(
                 depth: n.depth + 1,
                 parent: Some(i),
             };
-            if lattice {
-                let k = key(&f);
-                if best_g.get(&k).is_some_and(|&b| b <= child.g) {
-                    continue;
-                }
-                best_g.insert(k, child.g);
+            if lattice && best_g.get(&key(&f)).is_some_and(|&b| b <= child.g) {
+                continue;
             }
             let hc = pr.h(&f);
             if child.g + hc >= incumbent {
                 continue;
+            }
+            // Only a state kept holds its cell: one pruned by the incumbent would shut out
+            // a dearer state there whose heuristic is lower.
+            if lattice {
+                best_g.insert(key(&f), child.g);
             }
             nodes.push(child);
             order += 1;
