@@ -246,6 +246,13 @@ impl Proc {
         }
     }
 
+    /// The process's scheduling policy (`libc::SCHED_OTHER`, `libc::SCHED_FIFO`, ...).
+    pub fn scheduling(&self) -> i32 {
+        let child = self.child.as_ref().expect("running");
+        // SAFETY: sched_getscheduler(2) on our own child.
+        unsafe { libc::sched_getscheduler(child.id() as i32) }
+    }
+
     /// Sends a signal (e.g. `libc::SIGUSR1`) to the process.
     pub fn signal(&self, sig: i32) {
         if let Some(child) = &self.child {

@@ -36,7 +36,7 @@ pub struct Cli {
     pub true_state_channel: Option<String>,
 }
 
-stride_node::node_cli!(Cli);
+stride_node::node_cli!(Cli, realtime);
 
 impl AppConfig for LinkConfig {
     const USE: ConfigUse = ConfigUse::Required(

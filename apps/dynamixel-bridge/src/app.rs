@@ -53,7 +53,7 @@ pub struct Cli {
     pub true_state_channel: Option<String>,
 }
 
-stride_node::node_cli!(Cli);
+stride_node::node_cli!(Cli, realtime);
 
 impl AppConfig for BridgeConfig {
     const USE: ConfigUse = ConfigUse::Required(

@@ -46,7 +46,7 @@ pub struct Cli {
     pub bus: Option<BusSpec>,
 }
 
-stride_node::node_cli!(Cli);
+stride_node::node_cli!(Cli, realtime);
 
 impl AppConfig for BridgeConfig {
     const USE: ConfigUse = ConfigUse::Required(

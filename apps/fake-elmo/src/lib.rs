@@ -43,7 +43,7 @@ pub struct Cli {
     pub idle_rate: f64,
 }
 
-stride_node::node_cli!(Cli);
+stride_node::node_cli!(Cli, realtime);
 
 /// The running drives.
 pub struct Rig {

@@ -56,7 +56,7 @@ pub struct Cli {
     node: NodeArgs,
 }
 
-stride_node::node_cli!(Cli);
+stride_node::node_cli!(Cli, realtime);
 
 impl Cli {
     /// The configuration file given.

@@ -49,6 +49,10 @@ use crate::{Node, NodeArgs};
 
 /// A command line that carries the common flags.
 pub trait NodeCli: clap::Parser {
+    /// The app keeps time with motors: it runs at the real-time priority `--rt-priority`
+    /// asks for ([`crate::realtime`]).
+    const REALTIME: bool = false;
+
     /// The common flags.
     fn node_args(&self) -> &NodeArgs;
 }
@@ -58,6 +62,14 @@ pub trait NodeCli: clap::Parser {
 macro_rules! node_cli {
     ($cli:ty) => {
         impl $crate::NodeCli for $cli {
+            fn node_args(&self) -> &$crate::NodeArgs {
+                &self.node
+            }
+        }
+    };
+    ($cli:ty, realtime) => {
+        impl $crate::NodeCli for $cli {
+            const REALTIME: bool = true;
             fn node_args(&self) -> &$crate::NodeArgs {
                 &self.node
             }
@@ -174,6 +186,11 @@ where
     F: AppConfig,
 {
     let cli = C::parse();
+    if C::REALTIME {
+        // Before any thread starts, so that every one of them inherits it; a refusal is
+        // logged once logging is up.
+        let _ = crate::realtime::request(cli.node_args().rt_priority);
+    }
     let outcome = check_log_filter(&cli.node_args().log_level)
         .and_then(|()| app_config::<F>(cli.node_args().config.as_deref()))
         .and_then(|cfg| body(Launch { cli, cfg, name }));

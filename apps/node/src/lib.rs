@@ -13,6 +13,7 @@
 mod app;
 mod config;
 mod heartbeat;
+pub mod realtime;
 mod stamp;
 mod throttle;
 
@@ -88,6 +89,18 @@ pub struct NodeArgs {
     /// Channel of the 1 Hz heartbeat (stride.node_status_t).
     #[arg(long, default_value = STATUS_CHANNEL, value_name = "CHANNEL")]
     pub status_channel: String,
+
+    /// Real-time priority (SCHED_FIFO, 1 to 99) of the apps that keep time with motors (the
+    /// gait, the bridges, the CAN gateway, the fake devices); 0: normal scheduling. Others
+    /// ignore it. Refused without CAP_SYS_NICE or an rtprio limit: a warning, no error.
+    #[arg(
+        long,
+        env = "STRIDE_RT_PRIORITY",
+        default_value_t = 0,
+        value_name = "PRIORITY",
+        value_parser = clap::value_parser!(u8).range(0..=99)
+    )]
+    pub rt_priority: u8,
 }
 
 impl Default for NodeArgs {
@@ -100,6 +113,7 @@ impl Default for NodeArgs {
             log_level: "info".into(),
             name: None,
             status_channel: STATUS_CHANNEL.into(),
+            rt_priority: 0,
         }
     }
 }
@@ -216,6 +230,7 @@ impl Node {
     /// starts the heartbeat. `default_name` is used unless `--name` was given.
     pub fn start(default_name: &str, args: &NodeArgs) -> anyhow::Result<Node> {
         init_logging(&args.log_level);
+        realtime::log_outcome();
         let name = args.name.clone().unwrap_or_else(|| default_name.to_owned());
         let lcm = bus(args)?;
         let shutdown = shutdown_on_signals()?;

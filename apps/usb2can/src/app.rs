@@ -52,7 +52,7 @@ pub struct Cli {
     stats_every: f64,
 }
 
-stride_node::node_cli!(Cli);
+stride_node::node_cli!(Cli, realtime);
 
 /// The longest the loop spends on one direction before it turns to the other.
 const SLICE: Duration = Duration::from_millis(1);

@@ -18,6 +18,10 @@ pub struct SlcanStats {
     pub malformed: u64,
     /// Commands the dongle refused (BEL).
     pub refused: u64,
+    /// Frames whose acknowledgment came after their send's deadline (the frame was written
+    /// to the dongle: a busy machine or dongle answers late, and the answer is matched to
+    /// its frame when it comes).
+    pub late: u64,
 }
 
 /// Opens the dongle on the serial device `path` (e.g. `/dev/ttyACM0`) at `bits_per_second`.
@@ -41,6 +45,8 @@ pub struct SlcanBus<P: serialport::SerialPort> {
     split: LineSplitter,
     frames: VecDeque<CanFrame>,
     replies: VecDeque<Message>,
+    /// Frames written whose answer has not been taken yet: the next answers are theirs.
+    unanswered: usize,
     stats: SlcanStats,
 }
 
@@ -65,6 +71,7 @@ impl<P: serialport::SerialPort> SlcanBus<P> {
             split: LineSplitter::new(),
             frames: VecDeque::new(),
             replies: VecDeque::new(),
+            unanswered: 0,
             stats: SlcanStats::default(),
         };
         // A close on a closed channel may be refused: only the answer matters, not its value.
@@ -84,27 +91,51 @@ impl<P: serialport::SerialPort> SlcanBus<P> {
         self.stats
     }
 
-    /// Sends a command and waits for its answer: true for CR, false for BEL.
+    /// Sends a command and waits for its answer: true for CR, false for BEL. The answers
+    /// still owed to frames sent before are taken first, in order.
     pub fn command(&mut self, c: &Command, timeout: Duration) -> Result<bool, BusError> {
         let bytes = c.encode().map_err(|e| BusError::Device(e.to_string()))?;
-        self.port.write_all(&bytes).map_err(io)?;
-        self.port.flush().map_err(io)?;
         let deadline = Instant::now() + timeout;
-        loop {
-            if let Some(m) = self.replies.pop_front() {
-                return match m {
-                    Message::Ok | Message::Transmitted { .. } => Ok(true),
-                    Message::Error => {
-                        self.stats.refused += 1;
-                        Ok(false)
-                    }
-                    _ => Ok(true),
-                };
+        while self.unanswered > 0 {
+            self.take_owed();
+            if self.unanswered == 0 {
+                break;
             }
             if Instant::now() >= deadline {
                 return Err(BusError::Timeout);
             }
             self.pump(deadline)?;
+        }
+        self.port.write_all(&bytes).map_err(io)?;
+        self.port.flush().map_err(io)?;
+        loop {
+            if let Some(m) = self.replies.pop_front() {
+                return Ok(self.answer(m));
+            }
+            if Instant::now() >= deadline {
+                return Err(BusError::Timeout);
+            }
+            self.pump(deadline)?;
+        }
+    }
+
+    /// An answer: true for CR (or a transmit's acknowledgment), false for BEL (counted).
+    fn answer(&mut self, m: Message) -> bool {
+        if m == Message::Error {
+            self.stats.refused += 1;
+            return false;
+        }
+        true
+    }
+
+    /// Takes the answers already in that frames sent before are owed (a refusal counted).
+    fn take_owed(&mut self) {
+        while self.unanswered > 0 {
+            let Some(m) = self.replies.pop_front() else {
+                return;
+            };
+            self.unanswered -= 1;
+            self.answer(m);
         }
     }
 
@@ -146,18 +177,38 @@ impl<P: serialport::SerialPort> SlcanBus<P> {
 }
 
 impl<P: serialport::SerialPort> CanBus for SlcanBus<P> {
+    /// Writes the frame and waits until `deadline` for the dongle's answer: a refusal
+    /// (BEL, its queue full) is [`BusError::TxQueueFull`]. An answer that has not come by
+    /// then is owed: the frame went to the dongle, it counts as sent (and late), and its
+    /// answer is taken when it comes, before any later one.
     fn send(&mut self, frame: &CanFrame, deadline: Instant) -> Result<(), BusError> {
-        let ok = self.command(
-            &Command::Transmit(*frame),
-            deadline
-                .saturating_duration_since(Instant::now())
-                .max(Duration::from_millis(1)),
-        )?;
-        if ok {
-            self.stats.sent += 1;
-            Ok(())
-        } else {
-            Err(BusError::TxQueueFull)
+        self.take_owed();
+        let bytes = Command::Transmit(*frame)
+            .encode()
+            .map_err(|e| BusError::Device(e.to_string()))?;
+        self.port.write_all(&bytes).map_err(io)?;
+        self.port.flush().map_err(io)?;
+        self.unanswered += 1;
+        let deadline = deadline.max(Instant::now() + Duration::from_millis(1));
+        loop {
+            if let Some(m) = self.replies.pop_front() {
+                self.unanswered -= 1;
+                let ok = self.answer(m);
+                if self.unanswered == 0 {
+                    if !ok {
+                        return Err(BusError::TxQueueFull);
+                    }
+                    self.stats.sent += 1;
+                    return Ok(());
+                }
+                continue;
+            }
+            if Instant::now() >= deadline {
+                self.stats.sent += 1;
+                self.stats.late += 1;
+                return Ok(());
+            }
+            self.pump(deadline)?;
         }
     }
 
@@ -171,5 +222,38 @@ impl<P: serialport::SerialPort> CanBus for SlcanBus<P> {
             }
             self.pump(deadline)?;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    #[test]
+    fn a_late_acknowledgment_is_matched_to_its_frame_not_the_next_command() {
+        // Under load the dongle's "z" came after the send's deadline: the frame was counted
+        // as failed (though the dongle had it), and its late answer was taken for the next
+        // command's. A late answer is owed to its frame and taken in order.
+        let (host_end, mut dongle) = serialport::TTYPort::pair().expect("pty pair");
+        // The dongle's answers to close, speed and open, already on the line.
+        dongle.write_all(b"\r\r\r").unwrap();
+        let mut host = SlcanBus::open(host_end, BitRate::M1, Duration::from_secs(1)).unwrap();
+        let f = CanFrame::standard(0x123, &[1, 2]).unwrap();
+        // No answer within the deadline: sent, and late.
+        host.send(&f, Instant::now() + Duration::from_millis(5))
+            .unwrap();
+        assert_eq!((host.stats().sent, host.stats().late), (1, 1));
+        // The late answer, then the next frame's: each to its own.
+        dongle.write_all(b"z\rz\r").unwrap();
+        host.send(&f, Instant::now() + Duration::from_secs(1))
+            .unwrap();
+        assert_eq!(host.stats().sent, 2);
+        // A refused command is refused, not answered by a frame's "z".
+        dongle.write_all(&[7]).unwrap();
+        assert!(!host
+            .command(&Command::Speed(BitRate::K500), Duration::from_secs(1))
+            .unwrap());
+        assert_eq!((host.stats().refused, host.stats().late), (1, 1));
     }
 }

@@ -87,14 +87,31 @@ pub fn sdo_exchange<B: CanBus + ?Sized>(
             code: sdo::AbortCode::GENERAL,
         })
     })?;
+    // An initiate names its object: an answer that names another is a late one, to an
+    // earlier request that timed out (and was perhaps sent again), and is not this one's.
+    let asked = match request {
+        sdo::ClientRequest::InitiateDownload { index, sub, .. }
+        | sdo::ClientRequest::InitiateUpload { index, sub } => Some((*index, *sub)),
+        _ => None,
+    };
     exchange(
         bus,
         &frame,
         Instant::now() + timeout,
         |f| {
-            (f.raw_id() == want && !f.is_extended())
+            let r = (f.raw_id() == want && !f.is_extended())
                 .then(|| ServerResponse::decode(f).ok().map(|(_, r)| r))
-                .flatten()
+                .flatten()?;
+            let named = match &r {
+                ServerResponse::DownloadInitiated { index, sub }
+                | ServerResponse::UploadInitiated { index, sub, .. }
+                | ServerResponse::Abort { index, sub, .. } => Some((*index, *sub)),
+                _ => None,
+            };
+            match (asked, named) {
+                (Some(a), Some(n)) if a != n => None,
+                _ => Some(r),
+            }
         },
         aside,
     )
@@ -334,6 +351,33 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(e, HostError::NoAnswer);
+        stop.store(true, Ordering::Relaxed);
+        h.join().unwrap();
+    }
+
+    #[test]
+    fn a_late_answer_to_an_earlier_request_is_not_taken_for_this_ones() {
+        // Under load an answer came after its request had timed out, and the next request's
+        // exchange took it: "protocol error: answer for another object". An answer that
+        // names another object is passed over; this request's own answer is taken.
+        let bus = MemBus::new(1_000_000);
+        let stop = Arc::new(AtomicBool::new(false));
+        let od = Od(BTreeMap::from([((0x1000, 0), vec![0x92, 1, 2, 0])]));
+        let h = serve(&bus, od, stop.clone());
+        let mut host = bus.node();
+        let mut late = bus.node();
+        let n = NodeId::new(5).unwrap();
+        let stale = ServerResponse::DownloadInitiated {
+            index: 0x1400,
+            sub: 2,
+        };
+        late.send(&stale.encode(n).unwrap(), Instant::now())
+            .unwrap();
+        let t = Duration::from_millis(200);
+        assert_eq!(
+            sdo_read(&mut host, n, 0x1000, 0, t, &mut ignore).unwrap(),
+            [0x92, 1, 2, 0]
+        );
         stop.store(true, Ordering::Relaxed);
         h.join().unwrap();
     }

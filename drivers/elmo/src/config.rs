@@ -110,6 +110,11 @@ impl Motion {
 pub struct MasterConfig {
     /// Time allowed for each SDO exchange.
     pub sdo_timeout: Duration,
+    /// An SDO or interpreter exchange that got no answer in `sdo_timeout` is sent again this
+    /// many times before the drive counts as silent: a frame lost on a busy bus or a slow
+    /// gateway is no reason to give a drive up (each is idempotent: a write of the same
+    /// value, a read).
+    pub sdo_retries: u32,
     /// Heartbeat period the drives are told to use; lost after three periods.
     pub heartbeat: Duration,
     /// PVT, PT or interpolated position.
@@ -142,6 +147,7 @@ impl Default for MasterConfig {
     fn default() -> Self {
         MasterConfig {
             sdo_timeout: Duration::from_millis(200),
+            sdo_retries: 2,
             heartbeat: Duration::from_millis(100),
             motion: Motion::Pvt,
             master_node: 127,

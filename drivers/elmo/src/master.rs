@@ -115,6 +115,8 @@ pub struct Counters {
     /// Motions the master ended on its own clock whose end no drive reported in time
     /// ([`END_REPORT_WAIT`]): the next motion went ahead without it.
     pub unreported_ends: u64,
+    /// SDO and interpreter exchanges sent again after no answer came in time.
+    pub sdo_retries: u64,
 }
 
 /// How long the next motion of a joint waits for its drive's report that the last one
@@ -777,8 +779,36 @@ impl<B: CanBus> Master<B> {
         }
     }
 
-    /// Writes an object of axis `a`.
+    /// Runs `exchange` again while it gets no answer, up to [`MasterConfig::sdo_retries`]
+    /// more times (counted).
+    fn retried<T>(
+        &mut self,
+        mut exchange: impl FnMut(&mut Self) -> Result<T, MasterError>,
+    ) -> Result<T, MasterError> {
+        let mut left = self.cfg.sdo_retries;
+        loop {
+            match exchange(self) {
+                Err(MasterError::NoAnswer { .. }) if left > 0 => {
+                    left -= 1;
+                    self.counters.sdo_retries += 1;
+                }
+                r => return r,
+            }
+        }
+    }
+
+    /// Writes an object of axis `a` (sent again when no answer comes).
     pub fn write(
+        &mut self,
+        a: usize,
+        index: u16,
+        sub: u8,
+        data: Vec<u8>,
+    ) -> Result<(), MasterError> {
+        self.retried(|m| m.write_once(a, index, sub, data.clone()))
+    }
+
+    fn write_once(
         &mut self,
         a: usize,
         index: u16,
@@ -800,8 +830,12 @@ impl<B: CanBus> Master<B> {
         .map_err(|e| self.host_error(a, e, || format!("a write of {index:#06x}:{sub}")))
     }
 
-    /// Reads an object of axis `a`.
+    /// Reads an object of axis `a` (asked again when no answer comes).
     pub fn read(&mut self, a: usize, index: u16, sub: u8) -> Result<Vec<u8>, MasterError> {
+        self.retried(|m| m.read_once(a, index, sub))
+    }
+
+    fn read_once(&mut self, a: usize, index: u16, sub: u8) -> Result<Vec<u8>, MasterError> {
         let node = self.track.axes[a].node;
         let _ = self.track.heartbeat.poll(&mut self.bus, Instant::now());
         let track = &mut self.track;
@@ -816,8 +850,13 @@ impl<B: CanBus> Master<B> {
         .map_err(|e| self.host_error(a, e, || format!("a read of {index:#06x}:{sub}")))
     }
 
-    /// One binary-interpreter exchange with axis `a` over PDO2 (RPDO2 out, TPDO2 back).
+    /// One binary-interpreter exchange with axis `a` over PDO2 (RPDO2 out, TPDO2 back), sent
+    /// again when no answer comes.
     pub fn interpret(&mut self, a: usize, cmd: Interp) -> Result<Value, MasterError> {
+        self.retried(|m| m.interpret_once(a, cmd))
+    }
+
+    fn interpret_once(&mut self, a: usize, cmd: Interp) -> Result<Value, MasterError> {
         let node = self.track.axes[a].node;
         let want = CobId::of(Function::Tpdo(2), node).raw() as u32;
         let frame = cmd.encode(node).map_err(|_| MasterError::Interpreter {

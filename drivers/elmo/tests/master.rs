@@ -970,3 +970,35 @@ fn a_resting_master_syncs_less_often_and_its_drives_keep_their_watchdog() {
     assert!(events.is_empty(), "{events:?}");
     r.finish();
 }
+
+#[test]
+fn a_lost_request_is_sent_again_not_a_failed_bring_up() {
+    // Under load a gateway dropped an SDO request as stale, and the bridge gave up: "bring-up
+    // failed: left_knee (node 4): no answer to a write of 0x1400:2". Requests lost on the
+    // wire are sent again, up to the configured retries, and counted.
+    let lose = |n: u32| {
+        move |l: &[stride_fakes::elmo::Levers]| {
+            l[1].lose_requests
+                .store(n, std::sync::atomic::Ordering::Relaxed)
+        }
+    };
+    let mut r = Rig::try_new(2, MasterConfig::default(), 1_000_000, lose(2)).unwrap();
+    assert_eq!(r.m.status().counters.sdo_retries, 2);
+    r.m.load(
+        &minjerk(&["j1", "j2"], &[0.0, 0.0], &[0.1, 0.1], 0.3),
+        Instant::now(),
+    )
+    .unwrap();
+    r.play();
+    assert!((r.positions()[1] - 0.1).abs() < 1e-3, "{:?}", r.positions());
+    r.finish();
+    // Without retries the same loss fails the bring-up, naming the drive.
+    let cfg = MasterConfig {
+        sdo_retries: 0,
+        ..Default::default()
+    };
+    let e = Rig::try_new(2, cfg, 1_000_000, lose(1))
+        .err()
+        .expect("a failed bring-up");
+    assert!(matches!(&e, MasterError::NoAnswer { node: 2, .. }), "{e}");
+}

@@ -53,6 +53,11 @@ fn echo(f: &CanFrame) -> Option<CanFrame> {
 }
 
 fn main() -> anyhow::Result<()> {
+    // A device's processor is not held up by the host's load: the fake runs at the
+    // real-time priority STRIDE_RT_PRIORITY names, if any.
+    if let Err(why) = stride_node::realtime::request_from_env() {
+        eprintln!("fake-can-rig: {why}");
+    }
     let cli = Cli::parse();
     let nodes: Vec<u8> = cli
         .nodes

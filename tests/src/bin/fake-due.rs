@@ -63,6 +63,11 @@ fn plug(
 }
 
 fn main() -> anyhow::Result<()> {
+    // A device's processor is not held up by the host's load: the fake runs at the
+    // real-time priority STRIDE_RT_PRIORITY names, if any.
+    if let Err(why) = stride_node::realtime::request_from_env() {
+        eprintln!("fake-due: {why}");
+    }
     let cli = Cli::parse();
     let levers = DueLevers::default();
     levers.tilt(cli.tilt[0], *cli.tilt.get(1).unwrap_or(&0.0));

@@ -39,6 +39,11 @@ struct Cli {
 }
 
 fn main() -> anyhow::Result<()> {
+    // A device's processor is not held up by the host's load: the fake runs at the
+    // real-time priority STRIDE_RT_PRIORITY names, if any.
+    if let Err(why) = stride_node::realtime::request_from_env() {
+        eprintln!("fake-dynamixel-chain: {why}");
+    }
     let cli = Cli::parse();
     let model = models::by_name(&cli.model).ok_or_else(|| anyhow::anyhow!("unknown model"))?;
     let (a, b) = cli

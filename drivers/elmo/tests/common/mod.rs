@@ -51,10 +51,22 @@ impl Rig {
 
     /// [`Rig::with`] on a bus of `bits_per_second`.
     pub fn on_bus(n: u8, cfg: MasterConfig, bits_per_second: u32) -> Rig {
+        Rig::try_new(n, cfg, bits_per_second, |_| {}).unwrap()
+    }
+
+    /// [`Rig::on_bus`] with the levers pulled by `pull` before the master brings the drives
+    /// up; the bring-up's error, if it fails.
+    pub fn try_new(
+        n: u8,
+        cfg: MasterConfig,
+        bits_per_second: u32,
+        pull: impl FnOnce(&[Levers]),
+    ) -> Result<Rig, stride_elmo::MasterError> {
         let bus = MemBus::new(bits_per_second);
         let stop = Arc::new(AtomicBool::new(false));
         let levers: Vec<Levers> = (0..n).map(|_| Levers::default()).collect();
-        let drives = levers
+        pull(&levers);
+        let drives: Vec<JoinHandle<FakeElmo>> = levers
             .iter()
             .enumerate()
             .map(|(i, l)| {
@@ -63,7 +75,13 @@ impl Rig {
             })
             .collect();
         let mut m = Master::new(bus.node(), (1..=n).map(joint).collect(), cfg).unwrap();
-        m.bring_up().unwrap();
+        if let Err(e) = m.bring_up() {
+            stop.store(true, Ordering::Relaxed);
+            for d in drives {
+                let _ = d.join();
+            }
+            return Err(e);
+        }
         let mut rig = Rig {
             bus,
             stop,
@@ -72,7 +90,7 @@ impl Rig {
             m,
         };
         rig.run(Duration::from_millis(50));
-        rig
+        Ok(rig)
     }
 
     /// Pumps for `d`, at every wake the master asks for (at least every millisecond).

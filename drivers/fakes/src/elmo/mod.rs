@@ -95,6 +95,9 @@ pub struct Levers {
     pub fault: Arc<AtomicBool>,
     /// Set to make the drive stop answering (a pulled connector).
     pub silent: Arc<AtomicBool>,
+    /// The next this many SDO requests and interpreter commands to the drive are lost on
+    /// the wire (a busy bus, a slow gateway): the drive never sees them.
+    pub lose_requests: Arc<std::sync::atomic::AtomicU32>,
 }
 
 /// What a test can read of a fake drive after it ran (the drive's own view, as a bench
@@ -278,6 +281,18 @@ impl FakeElmo {
                 self.advance(now);
                 self.on_sync();
             }
+            return;
+        }
+        let request = id == CobId::of(Function::SdoRx, node).raw()
+            || (self.nmt == NmtState::Operational
+                && id == CobId::of(Function::Rpdo(2), node).raw());
+        if request
+            && self
+                .levers
+                .lose_requests
+                .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| n.checked_sub(1))
+                .is_ok()
+        {
             return;
         }
         if id == CobId::of(Function::SdoRx, node).raw() {
