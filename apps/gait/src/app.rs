@@ -56,7 +56,7 @@ pub struct Cli {
     node: NodeArgs,
 }
 
-stride_node::node_cli!(Cli, realtime);
+stride_node::node_cli!(Cli, realtime, 1);
 
 impl Cli {
     /// The configuration file given.

@@ -49,9 +49,11 @@ use crate::{Node, NodeArgs};
 
 /// A command line that carries the common flags.
 pub trait NodeCli: clap::Parser {
-    /// The app keeps time with motors: it runs at the real-time priority `--rt-priority`
-    /// asks for ([`crate::realtime`]).
-    const REALTIME: bool = false;
+    /// The app keeps time with motors: `Some(k)` runs it at `k` below the real-time priority
+    /// `--rt-priority` asks for ([`crate::realtime`]): 0 for the devices' side (bridges,
+    /// gateway, fake drives: their heartbeats keep the drives' watchdogs fed), 1 for the
+    /// gait, whose longer computations must not hold a bridge up. `None`: normal scheduling.
+    const REALTIME: Option<u8> = None;
 
     /// The common flags.
     fn node_args(&self) -> &NodeArgs;
@@ -68,8 +70,11 @@ macro_rules! node_cli {
         }
     };
     ($cli:ty, realtime) => {
+        $crate::node_cli!($cli, realtime, 0);
+    };
+    ($cli:ty, realtime, $below:expr) => {
         impl $crate::NodeCli for $cli {
-            const REALTIME: bool = true;
+            const REALTIME: Option<u8> = Some($below);
             fn node_args(&self) -> &$crate::NodeArgs {
                 &self.node
             }
@@ -186,10 +191,10 @@ where
     F: AppConfig,
 {
     let cli = C::parse();
-    if C::REALTIME {
+    if let (Some(below), p @ 1..) = (C::REALTIME, cli.node_args().rt_priority) {
         // Before any thread starts, so that every one of them inherits it; a refusal is
         // logged once logging is up.
-        let _ = crate::realtime::request(cli.node_args().rt_priority);
+        let _ = crate::realtime::request(p.saturating_sub(below).max(1));
     }
     let outcome = check_log_filter(&cli.node_args().log_level)
         .and_then(|()| app_config::<F>(cli.node_args().config.as_deref()))
