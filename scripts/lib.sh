@@ -72,8 +72,7 @@ ensure_peers() {
 
 # Runs a command inside a private network namespace whose only interface is a loopback with a
 # multicast route, so LCM's UDP multicast never reaches the host's interfaces. Inside it,
-# STRIDE_NETNS=1 is set (tests that need multicast check for it), and STRIDE_RT_PRIORITY=20
-# unless set already (the real-time priority of the apps that keep time with motors).
+# STRIDE_NETNS=1 is set (tests that need multicast check for it).
 in_netns() {
     if [ -n "${STRIDE_NETNS:-}" ]; then "$@"; return; fi
     local unshare=(unshare --net)
@@ -83,8 +82,5 @@ in_netns() {
         ip link set lo up
         ip route add 224.0.0.0/4 dev lo
         export STRIDE_NETNS=1
-        # The apps that keep time with motors (and the fake devices) run at a real-time
-        # priority, as on a robot: a loaded machine does not hold them back.
-        export STRIDE_RT_PRIORITY="${STRIDE_RT_PRIORITY:-20}"
         exec "$@"' stride-netns "$@"
 }
