@@ -301,6 +301,19 @@ fn uniform_cost_on(world: &World, s: &Settings, stance: Foot, other: Foot) -> (S
     (nodes, closed)
 }
 
+/// Terrain `name` (its scene text `body`), start at the origin, goal 1.5 m ahead: the scene,
+/// its world and the improved search's settings for it.
+fn terrain(name: &str, body: &str) -> (Scene, World, Settings) {
+    let text = format!(
+        "name = \"{name}\"\ndescription = \"\"\nreference = \"\"\n\
+         start = {{ x = 0.0, y = 0.0, yaw = 0.0 }}\ngoal = {{ x = 1.5, y = 0.0 }}\n{body}"
+    );
+    let scene = Scene::parse(&text, std::path::Path::new(".")).unwrap();
+    let world = World::of(&scene).unwrap();
+    let s = Settings::new(Mode::Improved, CostParams::of_scene(&scene).unwrap());
+    (scene, world, s)
+}
+
 /// The heuristic the planner really uses (`Dijkstra2d`, the 2-D way around tall cells over
 /// the energy bound) never exceeds the exact cost to go, on terrain with tall cells, low
 /// steps and bars: for random starts and goals, at the start and at every state of the exact
@@ -311,13 +324,7 @@ fn the_planners_heuristic_is_a_lower_bound_on_terrain_with_tall_cells_and_steps(
     let mut unit = || rng.next_u32() as f64 / u32::MAX as f64;
     let (mut checked, mut field_ruled, mut tightest) = (0, 0, 0.0f64);
     for (name, body) in TERRAINS {
-        let text = format!(
-            "name = \"{name}\"\ndescription = \"\"\nreference = \"\"\n\
-             start = {{ x = 0.0, y = 0.0, yaw = 0.0 }}\ngoal = {{ x = 1.5, y = 0.0 }}\n{body}"
-        );
-        let scene = Scene::parse(&text, std::path::Path::new(".")).unwrap();
-        let world = World::of(&scene).unwrap();
-        let mut s = Settings::new(Mode::Improved, CostParams::of_scene(&scene).unwrap());
+        let (scene, world, mut s) = terrain(name, body);
         assert_eq!(s.heuristic, Heuristic::Dijkstra2d, "the default");
         s.budget = Duration::from_secs(600);
         // The planner claims a bound here (no climb onto cells the field counts as tall).
@@ -401,13 +408,7 @@ fn the_planners_heuristic_is_a_lower_bound_on_terrain_with_tall_cells_and_steps(
 #[test]
 fn no_exhaustive_search_beats_a_plan_proven_optimal_on_terrain() {
     for (name, body) in TERRAINS {
-        let text = format!(
-            "name = \"{name}\"\ndescription = \"\"\nreference = \"\"\n\
-             start = {{ x = 0.0, y = 0.0, yaw = 0.0 }}\ngoal = {{ x = 1.5, y = 0.0 }}\n{body}"
-        );
-        let scene = Scene::parse(&text, std::path::Path::new(".")).unwrap();
-        let world = World::of(&scene).unwrap();
-        let mut s = Settings::new(Mode::Improved, CostParams::of_scene(&scene).unwrap());
+        let (scene, world, mut s) = terrain(name, body);
         s.budget = Duration::from_secs(600);
         let (start, goal) = (scene.start.p(), scene.goal.p());
         let p = plan(start, 0.0, goal, &world, Mode::Improved, &s);
