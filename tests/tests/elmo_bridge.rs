@@ -109,15 +109,9 @@ fn one(joint: &str, rows: &[(f64, f64, f64)]) -> JointTrajectoryT {
 
 /// A minimum-jerk move of one joint, rows 10 ms apart.
 fn minjerk(joint: &str, from: f64, to: f64, secs: f64) -> JointTrajectoryT {
-    let n = (secs / 0.01).round() as usize;
-    let rows: Vec<(f64, f64, f64)> = (0..=n)
-        .map(|r| {
-            let t = r as f64 * 0.01;
-            let x = t / secs;
-            let s = 10.0 * x.powi(3) - 15.0 * x.powi(4) + 6.0 * x.powi(5);
-            let ds = (30.0 * x.powi(2) - 60.0 * x.powi(3) + 30.0 * x.powi(4)) / secs;
-            (t, from + (to - from) * s, (to - from) * ds)
-        })
+    let m = stride_limits::moves::min_jerk(&[from], &[to], secs, 0.01);
+    let rows: Vec<(f64, f64, f64)> = (0..m.times.len())
+        .map(|k| (m.times[k], m.positions[k][0], m.velocities[k][0]))
         .collect();
     one(joint, &rows)
 }

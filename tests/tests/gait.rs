@@ -17,11 +17,12 @@ use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
 use stride_footstep::geom::v2;
 use stride_footstep_planner::node::request_at;
 use stride_gait::timeline::{Footstep, Side};
-use stride_gait_node::{archie_gait, min_jerk, GaitConfig};
+use stride_gait_node::{archie_gait, GaitConfig};
 use stride_kinematics::archie::ArchieConfig;
 use stride_lcmtypes::stride::{
     FootstepPlanT, JointStateT, NodeStatusT, StepCounterT, TrajectoryStatusT,
 };
+use stride_limits::moves::{min_jerk, min_jerk_time};
 use stride_tests::{handle_until, require_sandbox, udpm_url, Proc};
 
 fn repo(p: &str) -> PathBuf {
@@ -367,12 +368,17 @@ fn archies_rows_play_on_six_fake_elmo_drives_within_their_tolerance() {
     }
     // Into the standing pose from the drives' zeros, then the walk.
     let stand = rows.left.positions[0].to_vec();
-    let (times, positions, velocities) = min_jerk(&[0.0; 6], &stand, 1.0, 1.0, 0.01);
+    let mv = min_jerk(
+        &[0.0; 6],
+        &stand,
+        min_jerk_time(&[0.0; 6], &stand, 1.0, 1.0, 0.01),
+        0.01,
+    );
     let pose = Trajectory {
         joints: names.clone(),
-        times,
-        positions,
-        velocities,
+        times: mv.times,
+        positions: mv.positions,
+        velocities: mv.velocities,
         start: Start::Now,
     };
     m.load(&pose, Instant::now()).unwrap();

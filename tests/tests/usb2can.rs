@@ -7,9 +7,10 @@
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+use lcm::now_utime;
 use lcm::Lcm;
 use stride_can::CanFrame;
-use stride_can_lcm::{batch, frame_to_msg, now_us};
+use stride_can_lcm::{batch, frame_to_msg};
 use stride_canopen::frame::NodeId;
 use stride_lcmtypes::stride::{CanBusStatusT, CanFrameBatchT, CanFrameT, HeaderT};
 use stride_tests::{handle_until, pty_rig, require_sandbox, udpm_url, usb2can};
@@ -23,7 +24,7 @@ fn send(lcm: &Lcm, frames: &[CanFrameT]) {
 }
 
 fn frame(id: u16, data: &[u8]) -> CanFrameT {
-    frame_to_msg(&CanFrame::standard(id, data).unwrap(), now_us())
+    frame_to_msg(&CanFrame::standard(id, data).unwrap(), now_utime())
 }
 
 #[test]
@@ -86,7 +87,7 @@ fn a_flood_from_lcm_is_dropped_and_counted_never_sent_late_and_the_gateway_answe
             })
             .collect();
         flood += frames.len() as i64;
-        published.push(now_us());
+        published.push(now_utime());
         send(&lcm, &frames);
         lcm.handle_timeout(Duration::from_millis(3)).unwrap();
     }

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use lcm::Message;
+use lcm::{now_utime, Message};
 use stride_lcmtypes::stride::SimReportT;
 use stride_tests::{on_bus, require_sandbox, udpm_url, Proc};
 
@@ -669,13 +669,6 @@ fn front(r: &SimReportT) -> f64 {
     r.feet[0][0].max(r.feet[1][0])
 }
 
-fn now_us() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .as_micros() as i64
-}
-
 /// Waits (up to `timeout` s) until the simulated world's last report in `log` satisfies
 /// `ready`.
 fn wait_report(log: &Path, timeout: f64, ready: impl Fn(&SimReportT) -> bool) {
@@ -723,12 +716,12 @@ fn on_the_split_profile_a_lost_link_stops_the_robot_within_four_touch_downs_and_
 
     let walk = split.walk_in_background("2.5,0", 150.0);
     wait_report(&log, 90.0, |r| front(r) > 0.6);
-    let down = now_us();
+    let down = now_utime();
     split.hosts.set_link("robot", false);
     // The step under way, the next, the plan timeout (3 s) and the stand.
     std::thread::sleep(std::time::Duration::from_secs(12));
     split.hosts.set_link("robot", true);
-    let up = now_us();
+    let up = now_utime();
     let reports = sim_reports(&log);
     let (st, summary) = walk.wait(std::time::Duration::from_secs(160));
     let _ = logger.interrupt();
@@ -779,7 +772,7 @@ fn on_the_split_profile_a_killed_planner_makes_the_robot_step_in_place_until_it_
     let logger = split.logger("robot", "SIM_REPORT", &log);
     let walk = split.walk_in_background("2.5,0", 150.0);
     wait_report(&log, 90.0, |r| front(r) > 0.6);
-    let killed = now_us();
+    let killed = now_utime();
     let planner = split.hosts.pids("laptop", "stride-footstep");
     assert_eq!(planner.len(), 1, "one planner on the laptop: {planner:?}");
     // SAFETY: plain kill(2).
@@ -1064,7 +1057,7 @@ fn a_flooded_stalled_and_killed_robot_walks_again_after_a_resume() {
             m.state == TrajectoryStatusT::STATE_IDLE && m.reason.is_empty() && m.recovery.is_empty()
         },
     );
-    let stalled_at = now_us();
+    let stalled_at = now_utime();
 
     // 3. Kills mid-walk: the gait, then a bridge; the launcher restarts each.
     let second = std::thread::spawn({

@@ -19,27 +19,18 @@ fn config() -> BridgeConfig {
 
 /// A minimum-jerk move of joint `joint` from 0 to `to` in `secs`, rows 10 ms apart.
 fn move_to(names: &[String], joint: usize, to: f64, secs: f64) -> JointTrajectoryT {
-    let rows = (secs / 0.01).round() as usize + 1;
-    let row = |t: f64| {
-        let x = t / secs;
-        let p = 10.0 * x.powi(3) - 15.0 * x.powi(4) + 6.0 * x.powi(5);
-        let v = (30.0 * x.powi(2) - 60.0 * x.powi(3) + 30.0 * x.powi(4)) / secs;
-        let mut pos = vec![0.0; names.len()];
-        let mut vel = vec![0.0; names.len()];
-        pos[joint] = to * p;
-        vel[joint] = to * v;
-        (pos, vel)
-    };
-    let times: Vec<f64> = (0..rows).map(|r| r as f64 * 0.01).collect();
+    let mut goal = vec![0.0; names.len()];
+    goal[joint] = to;
+    let m = stride_limits::moves::min_jerk(&vec![0.0; names.len()], &goal, secs, 0.01);
     JointTrajectoryT {
         mode: JointTrajectoryT::MODE_PVT,
         queue: JointTrajectoryT::QUEUE_REPLACE,
         num_joints: names.len() as i32,
         joint_names: names.to_vec(),
-        num_rows: rows as i32,
-        positions: times.iter().map(|&t| row(t).0).collect(),
-        velocities: times.iter().map(|&t| row(t).1).collect(),
-        time_from_start: times,
+        num_rows: m.times.len() as i32,
+        positions: m.positions,
+        velocities: m.velocities,
+        time_from_start: m.times,
         ..Default::default()
     }
 }

@@ -10,7 +10,8 @@
 use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
-use stride_can_lcm::{batch, frame_to_msg, msg_to_frame, now_us, rx_channel, tx_channel};
+use lcm::now_utime;
+use stride_can_lcm::{batch, frame_to_msg, msg_to_frame, rx_channel, tx_channel};
 use stride_canbus::{CanBus, MemBus, MemNode};
 use stride_elmo_bridge::BridgeConfig;
 use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
@@ -144,7 +145,7 @@ impl Tick for Rig {
         }
         let mut out = Vec::new();
         while let Ok(Some(f)) = self.gateway.try_recv() {
-            out.push(frame_to_msg(&f, now_us()));
+            out.push(frame_to_msg(&f, now_utime()));
         }
         let p = node.publisher();
         for chunk in out.chunks(stride_can_lcm::BATCH) {

@@ -7,6 +7,7 @@ use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use lcm::now_utime;
 use stride_gait::archie::{ArchieGait, JointPlan, Joints};
 use stride_gait::hexapod::{HexConfig, HexGait, HexRow};
 use stride_gait::pattern::Pattern;
@@ -20,12 +21,13 @@ use stride_lcmtypes::stride::{
     FootstepPlanT, GaitCommandT, ImuT, JointStateT, NodeStatusT, OdometryT, PoseStampedT,
     TrajectoryStatusT,
 };
+use stride_limits::moves::{min_jerk, min_jerk_time};
 use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Spaced, Stamper, Throttle, Tick};
 
 use crate::{
-    at_goal, command_msg, counter_msg, feet_after, goal_of, min_jerk, odometry_pelvis, pelvis_at,
-    plan_of, request_msg, stand_from, trajectory_msg, Anchor, Asking, BridgeStop, BridgeWatch,
-    GaitConfig, Goal, GoalConfig, Robot, ROW_PERIOD,
+    at_goal, command_msg, counter_msg, feet_after, goal_of, odometry_pelvis, pelvis_at, plan_of,
+    request_msg, stand_from, trajectory_msg, Anchor, Asking, BridgeStop, BridgeWatch, GaitConfig,
+    Goal, GoalConfig, Robot, ROW_PERIOD,
 };
 use stride_gait::short;
 
@@ -431,12 +433,6 @@ const STATUS_GAP: Duration = Duration::from_millis(50);
 /// Rows of the pattern are made this far (s) beyond the stream's reach when they were not
 /// made with it (see `GaitApp::make_rows`).
 const MAKE_AHEAD: f64 = 0.5;
-
-fn now_utime() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_micros() as i64)
-}
 
 impl GaitApp {
     /// Loads the robot, builds the gait and subscribes.
@@ -1077,10 +1073,11 @@ impl GaitApp {
                 };
                 let start = t + self.cfg.lookahead;
                 for (a, b) in from.iter().zip(&stand) {
-                    let (times, p, v) = min_jerk(a, b, self.cfg.pose_speed, 1.0, 0.01);
-                    rows.times = times.iter().map(|x| start + x).collect();
-                    rows.pos.push(p);
-                    rows.vel.push(v);
+                    let secs = min_jerk_time(a, b, self.cfg.pose_speed, 1.0, 0.01);
+                    let m = min_jerk(a, b, secs, 0.01);
+                    rows.times = m.times.iter().map(|x| start + x).collect();
+                    rows.pos.push(m.positions);
+                    rows.vel.push(m.velocities);
                 }
                 // Rows are per pattern group; Archie's hold both legs.
                 if let Body::Archie { .. } = self.body {

@@ -22,6 +22,7 @@ use stride_lcmtypes::stride::{
     FootT, FootstepPlanRequestT, FootstepPlanT, HeaderT, ImuT, JointCommandT, JointTrajectoryT,
     PoseStampedT, StepCounterT, TrajectoryStatusT,
 };
+use stride_limits::angle::wrap;
 
 /// The period of Archie's joint rows, s (every other 5 ms sample of the pattern).
 pub const ROW_PERIOD: f64 = 0.01;
@@ -527,39 +528,6 @@ pub fn archie_gait(
     Ok((legs, gen))
 }
 
-/// A minimum-jerk move of joints from `from` to `to` taking at least `min_time` s and no
-/// joint faster than `speed` rad/s at its peak (1.875 · distance / time): rows every `dt`,
-/// (times, positions, velocities).
-#[allow(clippy::type_complexity)]
-pub fn min_jerk(
-    from: &[f64],
-    to: &[f64],
-    speed: f64,
-    min_time: f64,
-    dt: f64,
-) -> (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
-    let far = from
-        .iter()
-        .zip(to)
-        .map(|(a, b)| (b - a).abs())
-        .fold(0.0, f64::max);
-    let time = ((1.875 * far / speed).max(min_time) / dt).ceil() * dt;
-    let n = (time / dt).round() as usize;
-    let mut times = Vec::with_capacity(n + 1);
-    let mut pos = Vec::with_capacity(n + 1);
-    let mut vel = Vec::with_capacity(n + 1);
-    for k in 0..=n {
-        let t = k as f64 * dt;
-        let x = t / time;
-        let s = 10.0 * x.powi(3) - 15.0 * x.powi(4) + 6.0 * x.powi(5);
-        let ds = (30.0 * x.powi(2) - 60.0 * x.powi(3) + 30.0 * x.powi(4)) / time;
-        times.push(t);
-        pos.push(from.iter().zip(to).map(|(a, b)| a + (b - a) * s).collect());
-        vel.push(from.iter().zip(to).map(|(a, b)| (b - a) * ds).collect());
-    }
-    (times, pos, vel)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -864,20 +832,6 @@ mod tests {
         assert_eq!(s.correction(a), [-0.03, 0.0]);
         assert!(Stabiliser::attitude(&ImuT::default()).is_none());
     }
-
-    #[test]
-    fn a_min_jerk_move_rests_at_both_ends_within_its_speed() {
-        let (t, p, v) = min_jerk(&[0.0, 1.0], &[0.5, 1.0], 0.3, 1.0, 0.01);
-        assert!((p.last().unwrap()[0] - 0.5).abs() < 1e-12);
-        assert!(v[0][0].abs() < 1e-12 && v.last().unwrap()[0].abs() < 1e-12);
-        let top = v.iter().map(|r| r[0].abs()).fold(0.0, f64::max);
-        assert!(top <= 0.3 + 1e-9, "{top}");
-        assert!(
-            (t.last().unwrap() - 3.13).abs() < 0.011,
-            "{}",
-            t.last().unwrap()
-        );
-    }
 }
 
 /// Walking to a goal: the gait asks the planner for the steps from where its feet will stand
@@ -983,16 +937,6 @@ impl GoalConfig {
                 "goal.planner {other:?}: one of \"archie\", \"kaist\", \"lola\""
             )),
         }
-    }
-}
-
-/// An angle in (−π, π].
-fn wrap(a: f64) -> f64 {
-    let w = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-    if w == -std::f64::consts::PI {
-        std::f64::consts::PI
-    } else {
-        w
     }
 }
 

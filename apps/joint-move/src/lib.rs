@@ -16,16 +16,7 @@ pub fn min_jerk(
     dt: f64,
     header: HeaderT,
 ) -> JointTrajectoryT {
-    let rows = (secs / dt).round().max(1.0) as usize + 1;
-    let s = |t: f64| {
-        let x = (t / secs).clamp(0.0, 1.0);
-        10.0 * x.powi(3) - 15.0 * x.powi(4) + 6.0 * x.powi(5)
-    };
-    let ds = |t: f64| {
-        let x = (t / secs).clamp(0.0, 1.0);
-        (30.0 * x.powi(2) - 60.0 * x.powi(3) + 30.0 * x.powi(4)) / secs
-    };
-    let times: Vec<f64> = (0..rows).map(|r| r as f64 * dt).collect();
+    let m = stride_limits::moves::min_jerk(from, to, secs, dt);
     JointTrajectoryT {
         header,
         start_utime: 0,
@@ -33,21 +24,10 @@ pub fn min_jerk(
         queue: JointTrajectoryT::QUEUE_REPLACE,
         num_joints: names.len() as i32,
         joint_names: names.to_vec(),
-        num_rows: rows as i32,
-        positions: times
-            .iter()
-            .map(|&t| {
-                from.iter()
-                    .zip(to)
-                    .map(|(a, b)| a + (b - a) * s(t))
-                    .collect()
-            })
-            .collect(),
-        velocities: times
-            .iter()
-            .map(|&t| from.iter().zip(to).map(|(a, b)| (b - a) * ds(t)).collect())
-            .collect(),
-        time_from_start: times,
+        num_rows: m.times.len() as i32,
+        positions: m.positions,
+        velocities: m.velocities,
+        time_from_start: m.times,
     }
 }
 

@@ -1,16 +1,8 @@
 //! Headers for outgoing messages.
 
-use std::time::{SystemTime, UNIX_EPOCH};
-
 use stride_lcmtypes::stride::HeaderT;
 
-/// Microseconds since the Unix epoch.
-pub fn now_utime() -> i64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map(|d| d.as_micros() as i64)
-        .unwrap_or(0)
-}
+use lcm::now_utime;
 
 /// Makes the headers of one publisher's messages on one channel: the current time and a
 /// sequence number counting up by one, so receivers can count what they lose.

@@ -62,9 +62,7 @@ impl Pinger {
         if !(cli.linger >= 0.0 && cli.linger.is_finite()) {
             anyhow::bail!("--linger must be a number of seconds, 0 or more");
         }
-        let start_us = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_micros());
+        let start_us = lcm::now_utime();
         let token = format!("ping:{}:{start_us}", std::process::id());
         let tally = Arc::new(Mutex::new(Tally::new(token.clone())));
         let t = tally.clone();

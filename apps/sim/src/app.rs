@@ -116,9 +116,7 @@ impl SimApp {
             _subs: subs,
             joints,
             t0: Instant::now(),
-            utime0: std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0, |d| d.as_micros() as i64),
+            utime0: lcm::now_utime(),
             last_step: f64::NEG_INFINITY,
             fresh,
             stamps: std::array::from_fn(|_| Stamper::new("world")),

@@ -7,8 +7,9 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use lcm::now_utime;
 use stride_can::{dump, CanFrame};
-use stride_can_lcm::{batch, frame_to_msg, now_us, rx_channel, tx_channel};
+use stride_can_lcm::{batch, frame_to_msg, rx_channel, tx_channel};
 use stride_canbus::{BusError, BusSpec, CanBus};
 use stride_lcmtypes::stride::{CanFrameBatchT, NodeStatusT};
 use stride_node::{outln, Node, NodeArgs, Note, Stamper, Throttle, Tick};
@@ -109,8 +110,9 @@ impl GatewayApp {
             &tx_channel(&cli.bus_name),
             move |info: &lcm::RecvInfo<'_>, m: CanFrameBatchT| {
                 // A frame's age counts from when liblcm received its batch.
-                let waited =
-                    Duration::from_micros(now_us().saturating_sub(info.recv_utime).max(0) as u64);
+                let waited = Duration::from_micros(
+                    now_utime().saturating_sub(info.recv_utime).max(0) as u64,
+                );
                 let arrived = Instant::now()
                     .checked_sub(waited)
                     .unwrap_or_else(Instant::now);
@@ -144,7 +146,7 @@ impl GatewayApp {
 
     fn log_frame(&mut self, f: &CanFrame) {
         if let Some(d) = self.dump.as_mut() {
-            let _ = writeln!(d, "{}", dump::format(now_us(), &self.cli.bus_name, f));
+            let _ = writeln!(d, "{}", dump::format(now_utime(), &self.cli.bus_name, f));
         }
     }
 }
@@ -175,7 +177,7 @@ impl Tick for GatewayApp {
             match self.bus.recv(deadline) {
                 Ok(f) => {
                     self.log_frame(&f);
-                    frames.push(frame_to_msg(&f, now_us()));
+                    frames.push(frame_to_msg(&f, now_utime()));
                     if frames.len() >= stride_can_lcm::BATCH {
                         break;
                     }

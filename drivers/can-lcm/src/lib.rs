@@ -10,7 +10,7 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use lcm::{Lcm, Subscription};
+use lcm::{now_utime, Lcm, Subscription};
 use stride_can::{CanFrame, ExtendedId, Id, StandardId};
 use stride_canbus::{BusError, CanBus};
 use stride_lcmtypes::stride::{CanFrameBatchT, CanFrameT, HeaderT};
@@ -103,13 +103,6 @@ pub fn batch(bus: &str, header: HeaderT, frames: &[CanFrameT]) -> CanFrameBatchT
     }
 }
 
-/// Microseconds since the Unix epoch, the time base of the frame elements.
-pub fn now_us() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_micros() as i64)
-}
-
 /// The client side of a bus carried over LCM, on the app's LCM instance: sends on
 /// `CAN_<BUS>_TX`, receives from `CAN_<BUS>_RX`, and handles the instance while it waits in
 /// `recv` (so the app's own subscriptions are served meanwhile too). Frames sent back to back
@@ -176,7 +169,7 @@ impl<'a> LcmBus<'a> {
             return Ok(());
         }
         let header = HeaderT {
-            utime: now_us(),
+            utime: now_utime(),
             sequence: self.sequence,
             frame: String::new(),
         };
@@ -207,7 +200,7 @@ impl CanBus for LcmBus<'_> {
     fn send(&mut self, frame: &CanFrame, _deadline: Instant) -> Result<(), BusError> {
         // Frames sent back to back travel in one batch: flushed when a batch is full, or as
         // soon as the caller turns to receiving.
-        self.outbox.push(frame_to_msg(frame, now_us()));
+        self.outbox.push(frame_to_msg(frame, now_utime()));
         if self.outbox.len() >= BATCH {
             self.flush()?;
         }

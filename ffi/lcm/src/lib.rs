@@ -31,6 +31,7 @@
 //! restart, a log replay, a jump of more than [`SequenceTracker::MAX_GAP`]) starts a stream,
 //! counted in [`SubscriptionStats::sequence_streams`], and nothing is counted lost for it.
 
+mod clock;
 mod codec;
 mod error;
 mod eventlog;
@@ -38,6 +39,7 @@ mod instance;
 mod random;
 mod sequence;
 
+pub use clock::now_utime;
 pub use codec::{DecodeError, Decoder, EncodeError, Encoder, Message};
 pub use error::{Error, Result};
 pub use eventlog::{capturing_stderr, event_size, LogEvent, LogReader, LogWriter};

@@ -26,6 +26,7 @@
 //! way continue without a jump.
 
 use serde::Deserialize;
+use stride_limits::angle::wrap;
 
 use crate::pattern::{Generator, Pattern, Start};
 use crate::swing::Place;
@@ -184,10 +185,6 @@ fn finite(f: &Footstep) -> bool {
 fn rot(yaw: f64, v: [f64; 2]) -> [f64; 2] {
     let (s, c) = yaw.sin_cos();
     [c * v[0] - s * v[1], s * v[0] + c * v[1]]
-}
-
-fn wrap(a: f64) -> f64 {
-    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
 }
 
 impl Walker {

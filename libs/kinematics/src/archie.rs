@@ -37,6 +37,7 @@
 //! the pelvis upright, where the chain is exact.
 
 use serde::Deserialize;
+use stride_limits::angle::wrap;
 
 use crate::math::{mul, mv, rx, ry, rz, sub, tr, Pose, V3};
 use crate::KinError;
@@ -180,15 +181,6 @@ fn snap(c: f64) -> f64 {
         c.signum()
     } else {
         c
-    }
-}
-
-fn wrap(a: f64) -> f64 {
-    let w = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-    if w <= -std::f64::consts::PI {
-        w + std::f64::consts::TAU
-    } else {
-        w
     }
 }
 

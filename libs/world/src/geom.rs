@@ -161,17 +161,7 @@ pub fn line_intersection(a1: V2, a2: V2, b1: V2, b2: V2) -> Option<V2> {
     Some(a1 + da * t)
 }
 
-/// Wraps an angle to (-π, π].
-#[inline]
-pub fn wrap(a: f64) -> f64 {
-    let mut a = a % std::f64::consts::TAU;
-    if a <= -std::f64::consts::PI {
-        a += std::f64::consts::TAU;
-    } else if a > std::f64::consts::PI {
-        a -= std::f64::consts::TAU;
-    }
-    a
-}
+pub use stride_limits::angle::wrap;
 
 /// Length of a polyline.
 pub fn path_length(p: &[V2]) -> f64 {

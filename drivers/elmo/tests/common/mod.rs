@@ -210,32 +210,12 @@ pub fn bump(joints: usize, amplitude: f64, rows: usize) -> Trajectory {
 
 /// A minimum-jerk move of the named joints from `from` to `to` in `secs`, rows 10 ms apart.
 pub fn minjerk(names: &[&str], from: &[f64], to: &[f64], secs: f64) -> Trajectory {
-    let n = (secs / 0.01).round() as usize;
-    let times: Vec<f64> = (0..=n).map(|r| r as f64 * 0.01).collect();
-    let s = |t: f64| {
-        let x = t / secs;
-        10.0 * x.powi(3) - 15.0 * x.powi(4) + 6.0 * x.powi(5)
-    };
-    let ds = |t: f64| {
-        let x = t / secs;
-        (30.0 * x.powi(2) - 60.0 * x.powi(3) + 30.0 * x.powi(4)) / secs
-    };
+    let m = stride_limits::moves::min_jerk(from, to, secs, 0.01);
     Trajectory {
         joints: names.iter().map(|s| s.to_string()).collect(),
-        positions: times
-            .iter()
-            .map(|&t| {
-                from.iter()
-                    .zip(to)
-                    .map(|(a, b)| a + (b - a) * s(t))
-                    .collect()
-            })
-            .collect(),
-        velocities: times
-            .iter()
-            .map(|&t| from.iter().zip(to).map(|(a, b)| (b - a) * ds(t)).collect())
-            .collect(),
-        times,
+        positions: m.positions,
+        velocities: m.velocities,
+        times: m.times,
         start: Start::Now,
     }
 }

@@ -2,9 +2,13 @@
 //! set-points it is sent: every joint named is one of its own and named once, the arrays
 //! agree in length, and each value is finite and within the joint's position and velocity
 //! limits. A command that fails anywhere is refused whole ([`Reject`] says which joint and
-//! which limit, by how much); nothing is clipped.
+//! which limit, by how much); nothing is clipped. With it the pure arithmetic of joint motion
+//! the gait, the masters and the tools share: segments and their extremes ([`curve`]), the
+//! minimum-jerk move ([`moves`]) and angles ([`angle`]).
 
+pub mod angle;
 pub mod curve;
+pub mod moves;
 
 /// Why a command was refused (nothing of it is applied).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
