@@ -1014,7 +1014,11 @@ impl Anchor {
 /// before the plan.
 pub fn pelvis_at(plan: &stride_gait::archie::JointPlan, start: f64, t: f64) -> Option<[f64; 3]> {
     let i = plan.times.partition_point(|&x| start + x <= t);
-    let planar = |p: &stride_kinematics::math::Pose| [p.p[0], p.p[1], p.r[1][0].atan2(p.r[0][0])];
+    let planar = |p: &stride_kinematics::math::Pose| {
+        use stride_kinematics::math::Frame;
+        let at = p.position();
+        [at[0], at[1], p.yaw()]
+    };
     if i == 0 {
         return None;
     }

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use stride_kinematics::archie::{ArchieConfig, Leg, Q};
 use stride_kinematics::hexapod::Hexapod;
-use stride_kinematics::math::Pose;
+use stride_kinematics::math::{yawed, Frame, Pose};
 use stride_lcmtypes::stride::{
     ElevationMapT, FootT, HeaderT, ImuT, JointStateT, ObstacleListT, ObstacleT, OdometryT,
     PoseStampedT, PoseT, SimReportT,
@@ -388,15 +388,15 @@ pub fn elevation_msg(header: HeaderT, grid: &Grid, x: f64, y: f64, size: f64) ->
     }
 }
 
-/// A world vector in the frame whose axes are the columns of `r`.
-fn in_frame(r: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
-    [0, 1, 2].map(|i| (0..3).map(|k| r[k][i] * v[k]).sum())
+/// A world vector in the frame of `p` (its rotation undone).
+fn in_frame(p: &Pose, v: [f64; 3]) -> [f64; 3] {
+    p.rotation.inverse_transform_vector(&v.into()).into()
 }
 
 fn pose_t(p: &stride_kinematics::math::Pose) -> PoseT {
     PoseT {
-        position: p.p,
-        orientation: quaternion(&p.r),
+        position: p.position(),
+        orientation: quaternion(p),
     }
 }
 
@@ -486,14 +486,6 @@ impl Robot {
             SimRobot::Archie => Robot::Archie(ArchieConfig::load(path)?),
             SimRobot::Hexapod => Robot::Hexapod(Hexapod::load(path)?),
         })
-    }
-}
-
-fn yaw_pose(p: [f64; 3], yaw: f64) -> Pose {
-    let (c, s) = (yaw.cos(), yaw.sin());
-    Pose {
-        r: [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]],
-        p,
     }
 }
 
@@ -606,7 +598,7 @@ impl Sim {
             Model::Hexapod { body, velocity, .. } => {
                 let (p, yaw) = body.as_ref()?.pose();
                 Some(Kin {
-                    pose: yaw_pose(p, yaw),
+                    pose: yawed(p, yaw),
                     velocity: velocity.0,
                     angular_velocity: velocity.1,
                     acceleration: [0.0; 3],
@@ -722,7 +714,7 @@ impl Sim {
         let Some(kin) = self.kin() else {
             return words;
         };
-        let (pelvis, yaw) = (kin.pose.p, yaw_of(&kin.pose));
+        let (pelvis, yaw) = (kin.pose.position(), yaw_of(&kin.pose));
         while let Some(a) = self.cfg.appear.get(self.appeared).copied() {
             let Some([x, y, yaw]) = a.due(touchdowns, [pelvis[0], pelvis[1]], yaw) else {
                 break;
@@ -774,7 +766,7 @@ impl Sim {
             cov[i * 7] = c.position_sigma.powi(2);
         }
         cov[35] = c.yaw_sigma.powi(2);
-        let body_frame = |v| in_frame(&k.pose.r, v);
+        let body_frame = |v| in_frame(&k.pose, v);
         Some(OdometryT {
             header,
             child_frame: self.frame().into(),
@@ -792,8 +784,7 @@ impl Sim {
     pub fn imu_msg(&mut self, header: HeaderT) -> Option<ImuT> {
         let k = self.kin()?;
         let c = &self.cfg.imu;
-        let r = &k.pose.r;
-        let body_frame = |v| in_frame(r, v);
+        let body_frame = |v| in_frame(&k.pose, v);
         let a = k.acceleration;
         let g = self.cfg.body.g;
         let mut w = body_frame(k.angular_velocity);
@@ -806,7 +797,7 @@ impl Sim {
         }
         Some(ImuT {
             header,
-            orientation: quaternion(r),
+            orientation: quaternion(&k.pose),
             angular_velocity: w,
             linear_acceleration: f,
             temperature: f32::NAN,
@@ -826,7 +817,7 @@ impl Sim {
         let grid = self.world.perceived_elevation(&n, &mut self.rng);
         let at = self
             .kin()
-            .map_or([self.start[0], self.start[1], 0.0], |k| k.pose.p);
+            .map_or([self.start[0], self.start[1], 0.0], |k| k.pose.position());
         let map = elevation_msg(map, &grid, at[0], at[1], self.cfg.perception.map_size);
         self.pending.push_back((
             t + self.cfg.perception.delay,

@@ -13,7 +13,7 @@
 
 use serde::Deserialize;
 use stride_kinematics::archie::{self, ArchieConfig, Leg, LegPoints, Q};
-use stride_kinematics::math::{Pose, V3};
+use stride_kinematics::math::{at, yawed, Frame, Pose, V3};
 use stride_limits::curve::{beyond, hermite_within, Bounds, Cubic};
 
 use crate::pattern::Pattern;
@@ -175,7 +175,7 @@ impl ArchieGait {
         };
         let w = height.stance_width / 2.0;
         let feet = [[-zmp_ahead, w, 0.0, 0.0], [-zmp_ahead, -w, 0.0, 0.0]];
-        let pelvis = Pose::at([0.0, 0.0, pelvis_z]);
+        let pelvis = at([0.0, 0.0, pelvis_z]);
         let q = g
             .solve(&pelvis, &feet, &[[0.0, 0.0, 0.0, 0.3, -0.15, 0.0]; 2])
             .map_err(|e| {
@@ -191,9 +191,9 @@ impl ArchieGait {
             g.offset = [-com[0], -com[1], pelvis_z - com[2]];
             g.whole_body = true;
             for d in 0..3 {
-                let mut p = pelvis.p;
+                let mut p = pelvis.position();
                 p[d] += 1e-4;
-                let moved = Pose::at(p);
+                let moved = at(p);
                 if let Ok(qm) = g.reach(&moved, &feet, &q) {
                     let c = g.com_of(&moved, &qm);
                     let k = (c[d] - com[d]) / 1e-4;
@@ -224,7 +224,7 @@ impl ArchieGait {
                 sum[d] += mass * p[d];
             }
         };
-        add(m.pelvis, pelvis.p);
+        add(m.pelvis, pelvis.position());
         for p in points {
             let w = |a: &V3| pelvis.apply(a);
             let mid = |a: &V3, b: &V3| {
@@ -254,13 +254,13 @@ impl ArchieGait {
         offset: &mut V3,
     ) -> Result<(Pose, [Q; 2]), GaitError> {
         if !self.whole_body {
-            let pelvis = Pose::yawed(com, yaw);
+            let pelvis = yawed(com, yaw);
             let q = self.solve(&pelvis, feet, near)?;
             return Ok((pelvis, q));
         }
         let mut q = *near;
         for _ in 0..20 {
-            let pelvis = Pose::yawed(
+            let pelvis = yawed(
                 [com[0] + offset[0], com[1] + offset[1], com[2] + offset[2]],
                 yaw,
             );
@@ -319,10 +319,10 @@ impl ArchieGait {
     ) -> Result<([Q; 2], [LegPoints; 2]), GaitError> {
         let mut out = [[0.0; 6]; 2];
         let mut points = [[[0.0; 3]; 5]; 2];
-        let inv = pelvis.inv();
+        let inv = pelvis.inverse();
         for (k, leg) in [Leg::Left, Leg::Right].into_iter().enumerate() {
             let f = feet[k];
-            let sole = inv.then(&self.robot.sole_frame([f[0], f[1], f[2]], f[3]));
+            let sole = inv * self.robot.sole_frame([f[0], f[1], f[2]], f[3]);
             (out[k], points[k]) = archie::solve_points(&self.robot.links, leg, &sole, &near[k])
                 .map_err(|e| GaitError::Plan(e.to_string()))?;
         }
@@ -544,7 +544,7 @@ impl ArchieGait {
         let masses: Vec<Vec<(f64, V3)>> = (0..plan.times.len())
             .map(|i| {
                 let pelvis = plan.pelvis[i];
-                let mut pts = vec![(m.pelvis, pelvis.p)];
+                let mut pts = vec![(m.pelvis, pelvis.position())];
                 for (leg, rows) in [(Leg::Left, &plan.left), (Leg::Right, &plan.right)] {
                     let (_, p) = archie::fk_points(&self.robot.links, leg, &rows.positions[i]);
                     let w = |a: &V3| pelvis.apply(a);

@@ -12,11 +12,11 @@
 //!
 //! u_k = −G_i Σ_{i ≤ k} (C x_i − p_ref,i) − G_x x_k − Σ_{j=1..N} G_p(j) p_ref,k+j.
 //!
-//! The Riccati equation is solved by its doubling iteration (no linear-algebra crate: the
-//! matrices are 4 × 4). x and y are two independent carts with the same gains. The state
+//! The Riccati equation is solved by its doubling iteration on nalgebra's 4 × 4 matrices. x and y are two independent carts with the same gains. The state
 //! carries over from one reference to the next ([`Cart`]), so a new plan mid-walk continues
 //! the COM's position, velocity and acceleration exactly.
 
+use nalgebra::{Matrix3, Matrix4, RowVector3, Vector3, Vector4};
 use serde::Deserialize;
 
 use crate::GaitError;
@@ -48,89 +48,32 @@ impl Default for PreviewConfig {
     }
 }
 
-type M4 = [[f64; 4]; 4];
-type V4 = [f64; 4];
-
-fn mul4(a: &M4, b: &M4) -> M4 {
-    let mut c = [[0.0; 4]; 4];
-    for i in 0..4 {
-        for k in 0..4 {
-            let aik = a[i][k];
-            for j in 0..4 {
-                c[i][j] += aik * b[k][j];
-            }
-        }
-    }
-    c
-}
-
-fn tr4(a: &M4) -> M4 {
-    std::array::from_fn(|i| std::array::from_fn(|j| a[j][i]))
-}
-
-fn add4(a: &M4, b: &M4) -> M4 {
-    std::array::from_fn(|i| std::array::from_fn(|j| a[i][j] + b[i][j]))
-}
-
-fn mv4(a: &M4, v: &V4) -> V4 {
-    std::array::from_fn(|i| (0..4).map(|k| a[i][k] * v[k]).sum())
-}
-
-fn dot4(a: &V4, b: &V4) -> f64 {
-    (0..4).map(|k| a[k] * b[k]).sum()
-}
-
-/// The inverse of a 4 × 4 matrix by Gauss-Jordan elimination with partial pivoting.
-fn inv4(a: &M4) -> Option<M4> {
-    let mut m = *a;
-    let mut inv: M4 = std::array::from_fn(|i| std::array::from_fn(|j| (i == j) as u8 as f64));
-    for col in 0..4 {
-        let piv = (col..4).max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs()))?;
-        if m[piv][col].abs() < 1e-300 || !m[piv][col].is_finite() {
-            return None;
-        }
-        m.swap(col, piv);
-        inv.swap(col, piv);
-        let d = m[col][col];
-        for j in 0..4 {
-            m[col][j] /= d;
-            inv[col][j] /= d;
-        }
-        for row in 0..4 {
-            if row != col {
-                let f = m[row][col];
-                if f != 0.0 {
-                    for j in 0..4 {
-                        m[row][j] -= f * m[col][j];
-                        inv[row][j] -= f * inv[col][j];
-                    }
-                }
-            }
-        }
-    }
-    Some(inv)
-}
-
 /// The stabilising solution of the discrete algebraic Riccati equation
 /// P = Q + AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA for a single input (B a column, R a scalar), by
 /// the structure-preserving doubling algorithm (quadratic convergence).
-fn dare(a: &M4, b: &V4, q: &M4, r: f64) -> Result<M4, GaitError> {
-    let eye: M4 = std::array::from_fn(|i| std::array::from_fn(|j| (i == j) as u8 as f64));
+fn dare(
+    a: &Matrix4<f64>,
+    b: &Vector4<f64>,
+    q: &Matrix4<f64>,
+    r: f64,
+) -> Result<Matrix4<f64>, GaitError> {
     // G = B R⁻¹ Bᵀ, H = Q, A_k = A.
     let mut ak = *a;
-    let mut g: M4 = std::array::from_fn(|i| std::array::from_fn(|j| b[i] * b[j] / r));
+    let mut g = b * b.transpose() / r;
     let mut h = *q;
     for _ in 0..200 {
         // W = (I + G H)⁻¹
-        let w = inv4(&add4(&eye, &mul4(&g, &h)))
+        let w = (Matrix4::identity() + g * h)
+            .try_inverse()
             .ok_or_else(|| GaitError::Parameter("the Riccati iteration is singular".into()))?;
-        let aw = mul4(&ak, &w);
-        let g_next = add4(&g, &mul4(&mul4(&aw, &g), &tr4(&ak)));
-        let h_next = add4(&h, &mul4(&mul4(&tr4(&ak), &h), &mul4(&w, &ak)));
-        let a_next = mul4(&aw, &ak);
-        let change = (0..4)
-            .flat_map(|i| (0..4).map(move |j| (i, j)))
-            .map(|(i, j)| (h_next[i][j] - h[i][j]).abs() / (1.0 + h_next[i][j].abs()))
+        let aw = ak * w;
+        let g_next = g + aw * g * ak.transpose();
+        let h_next = h + ak.transpose() * h * w * ak;
+        let a_next = aw * ak;
+        let change = h_next
+            .iter()
+            .zip(h.iter())
+            .map(|(n, o)| (n - o).abs() / (1.0 + n.abs()))
             .fold(0.0, f64::max);
         ak = a_next;
         g = g_next;
@@ -223,37 +166,32 @@ impl Preview {
         let b = [t * t * t / 6.0, t * t / 2.0, t];
         let c = [1.0, 0.0, -z_c / g];
         // Augmented system: (e_k, Δx_k) with e the tracking error.
-        let ca: [f64; 3] = std::array::from_fn(|j| (0..3).map(|k| c[k] * a[k][j]).sum());
-        let cb: f64 = (0..3).map(|k| c[k] * b[k]).sum();
-        let mut at: M4 = [[0.0; 4]; 4];
-        at[0][0] = 1.0;
-        for j in 0..3 {
-            at[0][j + 1] = ca[j];
-            for i in 0..3 {
-                at[i + 1][j + 1] = a[i][j];
-            }
-        }
-        let bt: V4 = [cb, b[0], b[1], b[2]];
-        let mut q: M4 = [[0.0; 4]; 4];
-        q[0][0] = cfg.q_e;
+        let (am, bm, cm) = (
+            Matrix3::from_row_slice(&a.concat()),
+            Vector3::from(b),
+            RowVector3::from(c),
+        );
+        let mut at = Matrix4::zeros();
+        at[(0, 0)] = 1.0;
+        at.fixed_view_mut::<1, 3>(0, 1).copy_from(&(cm * am));
+        at.fixed_view_mut::<3, 3>(1, 1).copy_from(&am);
+        let bt = Vector4::new((cm * bm)[0], b[0], b[1], b[2]);
+        let mut q = Matrix4::zeros();
+        q[(0, 0)] = cfg.q_e;
         let p = dare(&at, &bt, &q, cfg.r)?;
-        let pb = mv4(&p, &bt);
-        let denom = cfg.r + dot4(&bt, &pb);
+        let denom = cfg.r + bt.dot(&(p * bt));
         // K = (R + B̃ᵀPB̃)⁻¹ B̃ᵀ P Ã = [G_i, G_x]
-        let pa = mul4(&p, &at);
-        let k: V4 = std::array::from_fn(|j| (0..4).map(|i| bt[i] * pa[i][j]).sum::<f64>() / denom);
+        let k = bt.transpose() * p * at / denom;
         let gi = k[0];
         let gx = [k[1], k[2], k[3]];
         // Ã_c = Ã − B̃ K; X(1) = −Ã_cᵀ P Ĩ; G_p(1) = −G_i; G_p(j) = B̃ᵀ X(j−1) / denom.
-        let ac: M4 = std::array::from_fn(|i| std::array::from_fn(|j| at[i][j] - bt[i] * k[j]));
-        let act = tr4(&ac);
-        let pi: V4 = [p[0][0], p[1][0], p[2][0], p[3][0]];
-        let mut x = mv4(&act, &pi).map(|v| -v);
+        let act = (at - bt * k).transpose();
+        let mut x = -(act * p.column(0));
         let mut gp = Vec::with_capacity(n);
         gp.push(-gi);
         for _ in 1..n {
-            gp.push(dot4(&bt, &x) / denom);
-            x = mv4(&act, &x);
+            gp.push(bt.dot(&x) / denom);
+            x = act * x;
         }
         if !(gi.is_finite() && gx.iter().all(|v| v.is_finite()) && gp.iter().all(|v| v.is_finite()))
         {

@@ -7,6 +7,7 @@
 //! positions solved for with the spline's second derivatives (the construction of Biagiotti
 //! and Melchiorri's *Trajectory Planning for Automatic Machines and Robots*, §4.4.4).
 
+use nalgebra::{DMatrix, DVector};
 use serde::Deserialize;
 
 use crate::GaitError;
@@ -22,33 +23,6 @@ pub struct Spline {
     ends: [[f64; 2]; 2],
     /// Each interval's cubic in the time from its first knot: c0 + c1 w + c2 w² + c3 w³.
     coef: Vec<[f64; 4]>,
-}
-
-/// Solves `a · x = b` (a square, row-major) by Gaussian elimination with partial pivoting.
-fn solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
-    let n = b.len();
-    for col in 0..n {
-        let piv = (col..n).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        if a[piv][col].abs() < 1e-300 {
-            return None;
-        }
-        a.swap(col, piv);
-        b.swap(col, piv);
-        let top = a[col].clone();
-        for row in col + 1..n {
-            let f = a[row][col] / top[col];
-            for (x, t) in a[row][col..].iter_mut().zip(&top[col..]) {
-                *x -= f * t;
-            }
-            b[row] -= f * b[col];
-        }
-    }
-    let mut x = vec![0.0; n];
-    for row in (0..n).rev() {
-        let s: f64 = (row + 1..n).map(|k| a[row][k] * x[k]).sum();
-        x[row] = (b[row] - s) / a[row][row];
-    }
-    Some(x)
 }
 
 impl Spline {
@@ -98,14 +72,14 @@ impl Spline {
         // Unknowns: M_1..M_{m-1} (m - 1 of them), then q_1 and q_{m-1}.
         let n = m + 1;
         let (iq1, iqm) = (m - 1, m);
-        let mut a = vec![vec![0.0; n]; n];
-        let mut b = vec![0.0; n];
+        let mut a = DMatrix::<f64>::zeros(n, n);
+        let mut b = DVector::<f64>::zeros(n);
         // Adds c·q_j to row r: to the unknowns if q_j is free, else to the right-hand side.
-        let add_q = |a: &mut Vec<Vec<f64>>, b: &mut Vec<f64>, r: usize, j: usize, c: f64| {
+        let add_q = |a: &mut DMatrix<f64>, b: &mut DVector<f64>, r: usize, j: usize, c: f64| {
             if j == 1 {
-                a[r][iq1] += c;
+                a[(r, iq1)] += c;
             } else if j == m - 1 {
-                a[r][iqm] += c;
+                a[(r, iqm)] += c;
             } else {
                 b[r] -= c * q[j];
             }
@@ -116,13 +90,13 @@ impl Spline {
         for i in 1..m {
             let r = i - 1;
             if i > 1 {
-                a[r][i - 2] += h[i - 1];
+                a[(r, i - 2)] += h[i - 1];
             } else {
                 b[r] -= h[0] * m0;
             }
-            a[r][i - 1] += 2.0 * (h[i - 1] + h[i]);
+            a[(r, i - 1)] += 2.0 * (h[i - 1] + h[i]);
             if i + 1 < m {
-                a[r][i] += h[i];
+                a[(r, i)] += h[i];
             } else {
                 b[r] -= h[m - 1] * mm;
             }
@@ -134,22 +108,25 @@ impl Spline {
         let r = m - 1;
         add_q(&mut a, &mut b, r, 1, 1.0 / h[0]);
         add_q(&mut a, &mut b, r, 0, -1.0 / h[0]);
-        a[r][0] += -h[0] / 6.0;
+        a[(r, 0)] += -h[0] / 6.0;
         b[r] += start[0] + h[0] * m0 / 3.0;
         // The end's: (q_m - q_{m-1}) / h_{m-1} + h_{m-1} (M_{m-1} + 2 M_m) / 6 = v_m.
         let r = m;
         add_q(&mut a, &mut b, r, m, 1.0 / h[m - 1]);
         add_q(&mut a, &mut b, r, m - 1, -1.0 / h[m - 1]);
-        a[r][m - 2] += h[m - 1] / 6.0;
+        a[(r, m - 2)] += h[m - 1] / 6.0;
         b[r] += end[0] - h[m - 1] * mm / 3.0;
-        let x = solve(a, b)
+        let x = a
+            .lu()
+            .solve(&b)
+            .filter(|x| x.iter().all(|v| v.is_finite()))
             .ok_or_else(|| GaitError::Parameter("the spline's system is singular".into()))?;
         q[1] = x[iq1];
         q[m - 1] = x[iqm];
         let mut mv = vec![0.0; m + 1];
         mv[0] = m0;
         mv[m] = mm;
-        mv[1..m].copy_from_slice(&x[..m - 1]);
+        mv[1..m].copy_from_slice(&x.as_slice()[..m - 1]);
         // p = M_i u³/6h + M_{i+1} w³/6h + A u + B w (u = h − w, A = q_i/h − M_i h/6,
         // B = q_{i+1}/h − M_{i+1} h/6), expanded in w.
         let coef = (0..m)

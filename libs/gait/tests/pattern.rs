@@ -350,14 +350,11 @@ fn archies_joints_follow_the_pattern_within_their_limits() {
             (stride_kinematics::archie::Leg::Left, &plan.left, 0),
             (stride_kinematics::archie::Leg::Right, &plan.right, 1),
         ] {
-            let sole = pelvis.then(&stride_kinematics::archie::fk(
-                &a.robot.links,
-                leg,
-                &rows.positions[i],
-            ));
+            let sole =
+                pelvis * stride_kinematics::archie::fk(&a.robot.links, leg, &rows.positions[i]);
             let want = p.samples[k].feet[f][0];
             let frame = a.robot.sole_frame([want[0], want[1], want[2]], want[3]);
-            worst = worst.max(sole.distance(&frame).0);
+            worst = worst.max(stride_kinematics::math::Frame::distance(&sole, &frame).0);
         }
     }
     assert!(worst < 1e-9, "{worst}");

@@ -39,7 +39,9 @@
 use serde::Deserialize;
 use stride_limits::angle::wrap;
 
-use crate::math::{mul, mv, rx, ry, rz, sub, tr, Pose, V3};
+use nalgebra::{Matrix3, Matrix6, Rotation3, Vector3, Vector6};
+
+use crate::math::{at as pose_at, pose, rx, ry, rz, yawed, Frame, Pose, V3};
 use crate::KinError;
 
 /// The legs' dimensions, m.
@@ -157,21 +159,30 @@ pub fn fk_points(links: &Links, leg: Leg, q: &Q) -> (Pose, LegPoints) {
 
 /// [`fk_points`] from each joint's sine and cosine.
 fn fk_points_sc(links: &Links, leg: Leg, sc: &[[f64; 2]; 6]) -> (Pose, LegPoints) {
-    let rx = |[s, c]: [f64; 2]| [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]];
-    let ry = |[s, c]: [f64; 2]| [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]];
-    let rz = |[s, c]: [f64; 2]| [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]];
+    let rx = |[s, c]: [f64; 2]| Matrix3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c);
+    let ry = |[s, c]: [f64; 2]| Matrix3::new(c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c);
+    let rz = |[s, c]: [f64; 2]| Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
     let s = leg.sign();
-    let h = hip(links, leg);
-    let r_hip = mul(&mul(&rz(sc[0]), &rx(sc[1])), &ry(sc[2]));
-    let top = crate::math::add(&h, &mv(&r_hip, &[0.0, s * links.d3, 0.0]));
-    let knee = crate::math::add(&top, &mv(&r_hip, &[0.0, 0.0, -links.a3]));
-    let r_shank = mul(&r_hip, &ry(sc[3]));
-    let pitch = crate::math::add(&knee, &mv(&r_shank, &[0.0, 0.0, -links.a2]));
-    let r_link = mul(&r_shank, &ry(sc[4]));
-    let roll = crate::math::add(&pitch, &mv(&r_link, &[0.0, 0.0, -links.a1]));
-    let r_foot = mul(&r_link, &rx(sc[5]));
-    let sole = crate::math::add(&roll, &mv(&r_foot, &[0.0, 0.0, -links.sole]));
-    (Pose { r: r_foot, p: sole }, [h, knee, pitch, roll, sole])
+    let h = Vector3::from(hip(links, leg));
+    let r_hip = rz(sc[0]) * rx(sc[1]) * ry(sc[2]);
+    let top = h + r_hip * Vector3::new(0.0, s * links.d3, 0.0);
+    let knee = top + r_hip * Vector3::new(0.0, 0.0, -links.a3);
+    let r_shank = r_hip * ry(sc[3]);
+    let pitch = knee + r_shank * Vector3::new(0.0, 0.0, -links.a2);
+    let r_link = r_shank * ry(sc[4]);
+    let roll = pitch + r_link * Vector3::new(0.0, 0.0, -links.a1);
+    let r_foot = r_link * rx(sc[5]);
+    let sole = roll + r_foot * Vector3::new(0.0, 0.0, -links.sole);
+    (
+        pose(Rotation3::from_matrix_unchecked(r_foot), sole.into()),
+        [
+            h.into(),
+            knee.into(),
+            pitch.into(),
+            roll.into(),
+            sole.into(),
+        ],
+    )
 }
 
 /// A cosine a rounding error past ±1 (a straight knee) brought back to it; further out, left
@@ -197,30 +208,25 @@ pub fn ik(links: &Links, leg: Leg, sole: &Pose) -> Result<Q, KinError> {
 /// [`ik`], with each joint's sine and cosine as the solution found them (no trigonometry
 /// beyond the angles' own).
 fn ik_sc(links: &Links, leg: Leg, sole: &Pose) -> Result<(Q, [[f64; 2]; 6]), KinError> {
-    if !(sole
-        .p
-        .iter()
-        .chain(sole.r.iter().flatten())
-        .all(|v| v.is_finite()))
-    {
+    if !sole.is_finite() {
         return Err(KinError::Unreachable(format!(
             "{} foot: not finite",
             leg.name()
         )));
     }
     let s = leg.sign();
-    let h = hip(links, leg);
-    let r_f = sole.r;
+    let h = Vector3::from(hip(links, leg));
+    let r_f = sole.rotation.matrix();
     // The ankle roll axis's point, and the hip joint seen from it in the foot frame.
-    let a = crate::math::add(&sole.p, &mv(&r_f, &[0.0, 0.0, links.sole]));
-    let r = mv(&tr(&r_f), &sub(&h, &a));
+    let a = sole.translation.vector + r_f * Vector3::new(0.0, 0.0, links.sole);
+    let r = r_f.transpose() * (h - a);
     let y0 = -s * links.d3;
     let yz2 = r[1] * r[1] + r[2] * r[2] - links.d3 * links.d3;
     let out_of_reach = |what: &str| {
         KinError::Unreachable(format!(
             "{} foot: the hip joint is {:.4} m from the ankle ({what})",
             leg.name(),
-            crate::math::norm(&r)
+            r.norm()
         ))
     };
     if yz2 < 0.0 {
@@ -264,10 +270,10 @@ fn ik_sc(links: &Links, leg: Leg, sole: &Pose) -> Result<(Q, [[f64; 2]; 6]), Kin
     let (s34, c34) = (s3 * c4 + c3 * s4, c3 * c4 - s3 * s4);
     // The hip: Rz(q0) Rx(q1) Ry(q2) = R_f Rx(−q5) Ry(−(q3 + q4)).
     let [s5, c5] = sc5;
-    let rx5 = [[1.0, 0.0, 0.0], [0.0, c5, s5], [0.0, -s5, c5]];
-    let ry34 = [[c34, 0.0, -s34], [0.0, 1.0, 0.0], [s34, 0.0, c34]];
-    let m = mul(&mul(&r_f, &rx5), &ry34);
-    let sb = m[2][1];
+    let rx5 = Matrix3::new(1.0, 0.0, 0.0, 0.0, c5, s5, 0.0, -s5, c5);
+    let ry34 = Matrix3::new(c34, 0.0, -s34, 0.0, 1.0, 0.0, s34, 0.0, c34);
+    let m = r_f * rx5 * ry34;
+    let sb = m[(2, 1)];
     let cb = (1.0 - sb * sb).sqrt();
     if !(-1.0..=1.0).contains(&sb) || cb < 1e-9 {
         return Err(KinError::Singular(format!(
@@ -276,13 +282,13 @@ fn ik_sc(links: &Links, leg: Leg, sole: &Pose) -> Result<(Q, [[f64; 2]; 6]), Kin
         )));
     }
     let q1 = sb.asin();
-    let q0 = (-m[0][1]).atan2(m[1][1]);
-    let q2 = (-m[2][0]).atan2(m[2][2]);
+    let q0 = (-m[(0, 1)]).atan2(m[(1, 1)]);
+    let q2 = (-m[(2, 0)]).atan2(m[(2, 2)]);
     // m = Rz(q0) Rx(q1) Ry(q2): m01 = −s0 c1, m11 = c0 c1, m20 = −c1 s2, m22 = c1 c2.
     let sc = [
-        [-m[0][1] / cb, m[1][1] / cb],
+        [-m[(0, 1)] / cb, m[(1, 1)] / cb],
         [sb, cb],
-        [-m[2][0] / cb, m[2][2] / cb],
+        [-m[(2, 0)] / cb, m[(2, 2)] / cb],
         [s3, c3],
         [s4, c4],
         sc5,
@@ -292,46 +298,23 @@ fn ik_sc(links: &Links, leg: Leg, sole: &Pose) -> Result<(Q, [[f64; 2]; 6]), Kin
 
 /// The difference of two poses as a 6-vector: translation (m) and rotation vector (rad) of
 /// `target` seen from `at`.
-fn pose_error(at: &Pose, target: &Pose) -> [f64; 6] {
-    let dp = sub(&target.p, &at.p);
-    let r = mul(&target.r, &tr(&at.r));
-    // The rotation vector of r (axis · angle).
-    let c = ((r[0][0] + r[1][1] + r[2][2] - 1.0) / 2.0).clamp(-1.0, 1.0);
-    let angle = c.acos();
-    let v = [r[2][1] - r[1][2], r[0][2] - r[2][0], r[1][0] - r[0][1]];
-    let k = if angle < 1e-9 {
-        0.5
+fn pose_error(at: &Pose, target: &Pose) -> Vector6<f64> {
+    let dp = target.translation.vector - at.translation.vector;
+    // The rotation vector of r (axis · angle), from its skew part sin θ · axis and its trace
+    // by atan2: exact near the identity, where the solver ends (an angle by acos is not).
+    let r = (target.rotation * at.rotation.inverse()).into_inner();
+    let v = Vector3::new(
+        r[(2, 1)] - r[(1, 2)],
+        r[(0, 2)] - r[(2, 0)],
+        r[(1, 0)] - r[(0, 1)],
+    ) / 2.0;
+    let (sin, cos) = (v.norm(), (r.trace() - 1.0) / 2.0);
+    let w = if sin < 1e-12 {
+        v
     } else {
-        angle / (2.0 * angle.sin())
+        v * (sin.atan2(cos) / sin)
     };
-    [dp[0], dp[1], dp[2], k * v[0], k * v[1], k * v[2]]
-}
-
-/// Solves `a · x = b` (6 × 6) by Gaussian elimination with partial pivoting.
-fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> Option<[f64; 6]> {
-    for col in 0..6 {
-        let piv = (col..6).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        let pivot = a[piv][col].abs();
-        if pivot.is_nan() || pivot <= 1e-300 {
-            return None;
-        }
-        a.swap(col, piv);
-        b.swap(col, piv);
-        let top = a[col];
-        for row in col + 1..6 {
-            let f = a[row][col] / top[col];
-            for (x, t) in a[row][col..].iter_mut().zip(&top[col..]) {
-                *x -= f * t;
-            }
-            b[row] -= f * b[col];
-        }
-    }
-    let mut x = [0.0; 6];
-    for row in (0..6).rev() {
-        let s: f64 = (row + 1..6).map(|k| a[row][k] * x[k]).sum();
-        x[row] = (b[row] - s) / a[row][row];
-    }
-    Some(x)
+    Vector6::new(dp[0], dp[1], dp[2], w[0], w[1], w[2])
 }
 
 /// Inverse kinematics by damped least squares from `q0` (the fallback of [`solve`]): the
@@ -342,11 +325,10 @@ pub fn ik_dls(links: &Links, leg: Leg, sole: &Pose, q0: &Q) -> Result<Q, KinErro
     let lambda2 = 1e-6;
     for _ in 0..200 {
         let e = pose_error(&fk(links, leg, &q), sole);
-        let err = e.iter().map(|v| v * v).sum::<f64>().sqrt();
-        if err < 1e-12 {
+        if e.norm() < 1e-12 {
             return Ok(q.map(wrap));
         }
-        let mut j = [[0.0; 6]; 6];
+        let mut j = Matrix6::<f64>::zeros();
         for k in 0..6 {
             let h = 1e-7;
             let (mut qp, mut qm) = (q, q);
@@ -355,23 +337,16 @@ pub fn ik_dls(links: &Links, leg: Leg, sole: &Pose, q0: &Q) -> Result<Q, KinErro
             // The error's change: −(d pose / d q_k).
             let ep = pose_error(&fk(links, leg, &qp), sole);
             let em = pose_error(&fk(links, leg, &qm), sole);
-            for i in 0..6 {
-                j[i][k] = -(ep[i] - em[i]) / (2.0 * h);
-            }
+            j.set_column(k, &(-(ep - em) / (2.0 * h)));
         }
         // (J Jᵀ + λ² I) y = e; Δq = Jᵀ y.
-        let mut jjt = [[0.0; 6]; 6];
-        for (a, row) in jjt.iter_mut().enumerate() {
-            for (b, v) in row.iter_mut().enumerate() {
-                *v = (0..6).map(|k| j[a][k] * j[b][k]).sum::<f64>()
-                    + if a == b { lambda2 } else { 0.0 };
-            }
-        }
-        let y = solve6(jjt, e).ok_or_else(|| {
+        let jjt = j * j.transpose() + Matrix6::identity() * lambda2;
+        let y = jjt.lu().solve(&e).ok_or_else(|| {
             KinError::Singular(format!("{} leg: the Jacobian is singular", leg.name()))
         })?;
+        let dq = j.transpose() * y;
         for (k, qk) in q.iter_mut().enumerate() {
-            *qk += (0..6).map(|i| j[i][k] * y[i]).sum::<f64>();
+            *qk += dq[k];
         }
         if !q.iter().all(|v| v.is_finite()) {
             break;
@@ -439,7 +414,7 @@ pub fn max_pelvis_height(
             [(Leg::Left, [length, width]), (Leg::Right, [0.0, 0.0])]
                 .iter()
                 .all(|&(leg, at)| {
-                    let sole = Pose::at([at[0] - pelvis[0], at[1] - pelvis[1], -z]);
+                    let sole = pose_at([at[0] - pelvis[0], at[1] - pelvis[1], -z]);
                     ik(links, leg, &sole).is_ok_and(|q| fits(leg, &q))
                 })
         })
@@ -488,19 +463,21 @@ pub fn dh_frames(links: &Links, leg: Leg, theta: &Q) -> [Pose; 7] {
     let offsets = [0.0, 0.0, 0.0, 0.0, half, 0.0];
     // Base (both legs): x0 up, y0 right, z0 forward (the ankle roll axis), the ankle roll
     // axis's height above the sole.
-    let base = Pose {
-        r: [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]],
-        p: [0.0, 0.0, links.sole],
-    };
+    let base = pose(
+        Rotation3::from_matrix_unchecked(Matrix3::new(
+            0.0, 0.0, 1.0, 0.0, -1.0, 0.0, 1.0, 0.0, 0.0,
+        )),
+        [0.0, 0.0, links.sole],
+    );
     let mut frames = [base; 7];
     for i in 0..6 {
         let (a, alpha, d) = table[i];
         let th = theta[i] + offsets[i];
-        let step = Pose::rot(rz(th))
-            .then(&Pose::at([0.0, 0.0, d]))
-            .then(&Pose::at([a, 0.0, 0.0]))
-            .then(&Pose::rot(rx(alpha)));
-        frames[i + 1] = frames[i].then(&step);
+        let step = pose(rz(th), [0.0; 3])
+            * pose_at([0.0, 0.0, d])
+            * pose_at([a, 0.0, 0.0])
+            * pose(rx(alpha), [0.0; 3]);
+        frames[i + 1] = frames[i] * step;
     }
     frames
 }
@@ -517,10 +494,13 @@ pub fn dh_angles(leg: Leg, q: &Q) -> Q {
 /// The pelvis frame in the frame of `leg`'s sole from its DH frames: frame 6 moved half of a6
 /// along its x toward the middle, turned to x forward, y left, z up.
 pub fn dh_pelvis(links: &Links, leg: Leg, frames: &[Pose; 7]) -> Pose {
-    frames[6].then(&Pose {
-        r: [[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]],
-        p: [-leg.sign() * links.a6 / 2.0, 0.0, 0.0],
-    })
+    frames[6]
+        * pose(
+            Rotation3::from_matrix_unchecked(Matrix3::new(
+                0.0, -1.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, -1.0,
+            )),
+            [-leg.sign() * links.a6 / 2.0, 0.0, 0.0],
+        )
 }
 
 /// The script's angles θ0..θ11 (right, support leg: θ0 ankle roll to θ5 hip yaw; left,
@@ -607,14 +587,14 @@ pub fn scilab_chain(links: &Links, theta: &[f64; 12]) -> [V3; 13] {
 pub fn exact_chain(links: &Links, theta: &[f64; 12]) -> [V3; 13] {
     let (ql, qr) = from_script(theta);
     let (sole_r, pr) = fk_points(links, Leg::Right, &qr);
-    let pelvis = sole_r.inv(); // the pelvis in the right sole's frame
+    let pelvis = sole_r.inverse(); // the pelvis in the right sole's frame
     let (_, pl) = fk_points(links, Leg::Left, &ql);
     let w = |p: &V3| pelvis.apply(p);
     let s = -1.0;
-    let r_hip = mul(&mul(&rz(qr[0]), &rx(qr[1])), &ry(qr[2]));
-    let top_r = crate::math::add(&pr[0], &mv(&r_hip, &[0.0, s * links.d3, 0.0]));
-    let l_hip = mul(&mul(&rz(ql[0]), &rx(ql[1])), &ry(ql[2]));
-    let top_l = crate::math::add(&pl[0], &mv(&l_hip, &[0.0, links.d3, 0.0]));
+    let r_hip = rz(qr[0]) * rx(qr[1]) * ry(qr[2]);
+    let top_r: V3 = (Vector3::from(pr[0]) + r_hip * Vector3::new(0.0, s * links.d3, 0.0)).into();
+    let l_hip = rz(ql[0]) * rx(ql[1]) * ry(ql[2]);
+    let top_l: V3 = (Vector3::from(pl[0]) + l_hip * Vector3::new(0.0, links.d3, 0.0)).into();
     let bar_r = [0.0, -links.a6 / 2.0, 0.0];
     let bar_l = [0.0, links.a6 / 2.0, 0.0];
     [
@@ -784,7 +764,7 @@ pub fn eq_41_residual(links: &Links, th0_script: f64, th1: f64, dy: f64) -> f64 
 
 /// A sole's pose from its frame's heading and place (level).
 pub fn level(p: V3, yaw: f64) -> Pose {
-    Pose::yawed(p, yaw)
+    yawed(p, yaw)
 }
 
 /// What drives a joint.
@@ -947,7 +927,7 @@ impl ArchieConfig {
     pub fn sole_frame(&self, centre: V3, yaw: f64) -> Pose {
         let (s, c) = yaw.sin_cos();
         let b = self.foot.centre_ahead;
-        Pose::yawed([centre[0] - c * b, centre[1] - s * b, centre[2]], yaw)
+        yawed([centre[0] - c * b, centre[1] - s * b, centre[2]], yaw)
     }
 }
 

@@ -11,7 +11,7 @@ use stride_kinematics::archie::{
     ik_dls, joint_pattern, max_pelvis_height, scilab_chain, solve, ArchieConfig, Faithful, Leg,
     Links, Q,
 };
-use stride_kinematics::math::{mul, rx, ry, rz, Pose};
+use stride_kinematics::math::{at, pose, rx, ry, rz, Frame, Matrix3, Rotation3};
 use stride_kinematics::KinError;
 
 const L: Links = Links::SCRIPT;
@@ -122,18 +122,16 @@ fn forward_kinematics_meets_the_golden_vectors() {
     for (k, (theta, pelvis_p, pelvis_r, left_sole)) in GOLDEN.iter().enumerate() {
         let (ql, qr) = from_script(theta);
         // The pelvis in the right sole's frame, the left sole in it.
-        let pelvis = fk(&L, Leg::Right, &qr).inv();
-        let (dp, dr) = pelvis.distance(&Pose {
-            r: *pelvis_r,
-            p: *pelvis_p,
-        });
+        let pelvis = fk(&L, Leg::Right, &qr).inverse();
+        let r = Matrix3::from_row_slice(&pelvis_r.concat());
+        let (dp, dr) = pelvis.distance(&pose(Rotation3::from_matrix_unchecked(r), *pelvis_p));
         assert!(dp < 1e-12 && dr < 1e-12, "G{}: {dp:.2e} m, {dr:.2e}", k + 1);
-        let left = pelvis.then(&fk(&L, Leg::Left, &ql));
+        let left = pelvis * fk(&L, Leg::Left, &ql);
         assert!(
-            close(&left.p, left_sole) < 1e-12,
+            close(&left.position(), left_sole) < 1e-12,
             "G{}: {:?}",
             k + 1,
-            left.p
+            left.position()
         );
     }
 }
@@ -152,7 +150,7 @@ fn the_dh_tables_give_this_geometry_with_a_quarter_turn_on_joint_5() {
         for leg in [Leg::Left, Leg::Right] {
             let frames = dh_frames(&L, leg, &dh_angles(leg, &q));
             let pelvis = dh_pelvis(&L, leg, &frames);
-            let (dp, dr) = pelvis.distance(&fk(&L, leg, &q).inv());
+            let (dp, dr) = pelvis.distance(&fk(&L, leg, &q).inverse());
             assert!(dp < 1e-12 && dr < 1e-12, "{leg:?} {q:?}: {dp:.2e} {dr:.2e}");
         }
     }
@@ -166,7 +164,7 @@ fn without_the_quarter_turn_the_dh_tables_miss_the_geometry() {
     th[4] -= std::f64::consts::FRAC_PI_2;
     let frames = dh_frames(&L, Leg::Right, &th);
     let pelvis = dh_pelvis(&L, Leg::Right, &frames);
-    let (dp, _) = pelvis.distance(&fk(&L, Leg::Right, &q).inv());
+    let (dp, _) = pelvis.distance(&fk(&L, Leg::Right, &q).inverse());
     assert!(dp > 0.05, "{dp}");
 }
 
@@ -241,7 +239,7 @@ proptest! {
     fn any_target_gives_joints_or_an_error_never_nan(
         p in proptest::array::uniform3(-0.9f64..0.9), yaw in -3.0f64..3.0, roll in -1.0f64..1.0,
     ) {
-        let target = Pose { r: mul(&rz(yaw), &rx(roll)), p };
+        let target = pose(rz(yaw) * rx(roll), p);
         match ik(&L, Leg::Right, &target) {
             Ok(q) => {
                 prop_assert!(q.iter().all(|v| v.is_finite()));
@@ -291,13 +289,13 @@ fn a_singular_hip_falls_back_to_damped_least_squares() {
 
 #[test]
 fn unreachable_and_bad_targets_are_errors() {
-    let far = Pose::at([0.0, 0.09, -1.0]);
+    let far = at([0.0, 0.09, -1.0]);
     let e = ik(&L, Leg::Left, &far).unwrap_err();
     assert!(
         matches!(&e, KinError::Unreachable(m) if m.contains("knee reaches")),
         "{e}"
     );
-    let nan = Pose::at([f64::NAN, 0.0, -0.6]);
+    let nan = at([f64::NAN, 0.0, -0.6]);
     assert!(matches!(
         ik(&L, Leg::Left, &nan),
         Err(KinError::Unreachable(_))
@@ -393,9 +391,10 @@ fn the_exact_pattern_puts_the_com_where_it_is_commanded() {
         // Forward kinematics of the pattern: the pelvis centre at (ΔX, ΔY) from the support
         // ankle, upright.
         let (_, qr) = s.legs();
-        let pelvis = fk(&L, Leg::Right, &qr).inv();
-        assert!((pelvis.p[0] - dx).abs() < 1e-12 && (pelvis.p[1] - dy).abs() < 1e-12);
-        let (_, dr) = pelvis.distance(&Pose::at(pelvis.p));
+        let pelvis = fk(&L, Leg::Right, &qr).inverse();
+        let p = pelvis.position();
+        assert!((p[0] - dx).abs() < 1e-12 && (p[1] - dy).abs() < 1e-12);
+        let (_, dr) = pelvis.distance(&at(p));
         assert!(dr < 1e-12);
         let printed = joint_pattern(&L, dx, dy, EQ_42).unwrap();
         let off = (printed.hip_y - dy).abs();

@@ -13,7 +13,7 @@ use std::collections::VecDeque;
 use serde::Deserialize;
 use stride_gait::support::{self, Pose2, Sole, P2};
 use stride_kinematics::archie::{self, ArchieConfig, Leg, JOINTS, Q};
-use stride_kinematics::math::Pose;
+use stride_kinematics::math::{pose, yawed, Frame, Matrix3, Pose, UnitQuaternion, Vector3};
 
 use crate::world::World;
 use crate::V3;
@@ -226,79 +226,27 @@ fn other(leg: Leg) -> Leg {
 
 /// The heading of a frame.
 pub fn yaw_of(p: &Pose) -> f64 {
-    p.r[1][0].atan2(p.r[0][0])
+    p.yaw()
 }
 
-/// The unit quaternion (w, x, y, z) of a rotation matrix.
-pub fn quaternion(r: &[[f64; 3]; 3]) -> [f64; 4] {
-    let tr = r[0][0] + r[1][1] + r[2][2];
-    let q = if tr > 0.0 {
-        let s = (tr + 1.0).sqrt() * 2.0;
-        [
-            0.25 * s,
-            (r[2][1] - r[1][2]) / s,
-            (r[0][2] - r[2][0]) / s,
-            (r[1][0] - r[0][1]) / s,
-        ]
-    } else if r[0][0] > r[1][1] && r[0][0] > r[2][2] {
-        let s = (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt() * 2.0;
-        [
-            (r[2][1] - r[1][2]) / s,
-            0.25 * s,
-            (r[0][1] + r[1][0]) / s,
-            (r[0][2] + r[2][0]) / s,
-        ]
-    } else if r[1][1] > r[2][2] {
-        let s = (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt() * 2.0;
-        [
-            (r[0][2] - r[2][0]) / s,
-            (r[0][1] + r[1][0]) / s,
-            0.25 * s,
-            (r[1][2] + r[2][1]) / s,
-        ]
-    } else {
-        let s = (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt() * 2.0;
-        [
-            (r[1][0] - r[0][1]) / s,
-            (r[0][2] + r[2][0]) / s,
-            (r[1][2] + r[2][1]) / s,
-            0.25 * s,
-        ]
-    };
-    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-    q.map(|v| v / n)
+/// The unit quaternion (w, x, y, z) of a pose's rotation.
+pub fn quaternion(p: &Pose) -> [f64; 4] {
+    let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
+    [q.w, q.i, q.j, q.k]
 }
 
 /// Least-squares quadratic through `(t, v)` about `tm`: value, slope and second derivative.
 fn quadratic(ts: &[f64], vs: &[f64], tm: f64) -> [f64; 3] {
     // Normal equations of v = a + b·s + c·s², s = t - tm.
-    let mut m = [[0.0; 3]; 3];
-    let mut y = [0.0; 3];
+    let mut m = Matrix3::<f64>::zeros();
+    let mut y = Vector3::<f64>::zeros();
     for (&t, &v) in ts.iter().zip(vs) {
         let s = t - tm;
-        let p = [1.0, s, s * s];
-        for i in 0..3 {
-            for j in 0..3 {
-                m[i][j] += p[i] * p[j];
-            }
-            y[i] += p[i] * v;
-        }
+        let p = Vector3::new(1.0, s, s * s);
+        m += p * p.transpose();
+        y += p * v;
     }
-    // Cramer's rule.
-    let det = |a: &[[f64; 3]; 3]| {
-        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
-            - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
-    };
-    let d = det(&m);
-    let mut out = [0.0; 3];
-    for (k, o) in out.iter_mut().enumerate() {
-        let mut a = m;
-        for i in 0..3 {
-            a[i][k] = y[i];
-        }
-        *o = det(&a) / d;
-    }
+    let out = m.lu().solve(&y).unwrap_or(Vector3::repeat(f64::NAN));
     [out[0], out[1], 2.0 * out[2]]
 }
 
@@ -317,7 +265,7 @@ impl Body {
         let mut body = Body {
             cfg,
             anchor: Leg::Left,
-            anchor_pose: Pose::IDENTITY,
+            anchor_pose: Pose::identity(),
             start,
             lifted: false,
             history: VecDeque::new(),
@@ -328,7 +276,7 @@ impl Body {
             counts: Counts::default(),
             state: State {
                 t: f64::NAN,
-                pelvis: Pose::IDENTITY,
+                pelvis: Pose::identity(),
                 feet: [[0.0; 4]; 2],
                 contact: [true; 2],
                 anchor: Leg::Left,
@@ -347,9 +295,9 @@ impl Body {
     /// Sets the body down centred on its start: the lower sole on the ground.
     fn place(&mut self, q: &[Q; 2], world: &World) {
         let [x, y, yaw] = self.start;
-        let pelvis0 = Pose::yawed([0.0; 3], yaw);
+        let pelvis0 = yawed([0.0; 3], yaw);
         let soles = [Leg::Left, Leg::Right]
-            .map(|leg| pelvis0.then(&archie::fk(&self.robot.links, leg, &q[idx(leg)])));
+            .map(|leg| pelvis0 * archie::fk(&self.robot.links, leg, &q[idx(leg)]));
         let centres = soles.map(|s| self.centre(&s));
         let anchor = if centres[1][2] < centres[0][2] {
             Leg::Right
@@ -365,8 +313,9 @@ impl Body {
         let shift = [x - mid[0], y - mid[1], ground - a[2]];
         let s = soles[idx(anchor)];
         self.anchor = anchor;
-        self.anchor_pose = Pose::yawed(
-            [s.p[0] + shift[0], s.p[1] + shift[1], s.p[2] + shift[2]],
+        let p = s.position();
+        self.anchor_pose = yawed(
+            [p[0] + shift[0], p[1] + shift[1], p[2] + shift[2]],
             yaw_of(&s),
         );
     }
@@ -378,8 +327,7 @@ impl Body {
 
     /// The sole frames (left, right) in the world for the pelvis at `pelvis`.
     fn soles(&self, pelvis: &Pose, q: &[Q; 2]) -> [Pose; 2] {
-        [Leg::Left, Leg::Right]
-            .map(|leg| pelvis.then(&archie::fk(&self.robot.links, leg, &q[idx(leg)])))
+        [Leg::Left, Leg::Right].map(|leg| pelvis * archie::fk(&self.robot.links, leg, &q[idx(leg)]))
     }
 
     fn centre(&self, sole: &Pose) -> V3 {
@@ -406,9 +354,8 @@ impl Body {
         if !self.lifted {
             self.place(q, world);
         }
-        let mut pelvis = self
-            .anchor_pose
-            .then(&archie::fk(&self.robot.links, self.anchor, &q[idx(self.anchor)]).inv());
+        let mut pelvis = self.anchor_pose
+            * archie::fk(&self.robot.links, self.anchor, &q[idx(self.anchor)]).inverse();
         let mut soles = self.soles(&pelvis, q);
         let o = other(self.anchor);
         let h = self.clearance(&soles[idx(o)], world);
@@ -418,21 +365,17 @@ impl Body {
             // whole body by the joints' tracking error at every step).
             let s = soles[idx(o)];
             self.anchor = o;
-            self.anchor_pose = Pose {
-                r: s.r,
-                p: [s.p[0], s.p[1], s.p[2] - h],
-            };
+            let p = s.position();
+            self.anchor_pose = pose(s.rotation, [p[0], p[1], p[2] - h]);
             let before = pelvis;
-            pelvis = self
-                .anchor_pose
-                .then(&archie::fk(&self.robot.links, o, &q[idx(o)]).inv());
+            pelvis = self.anchor_pose * archie::fk(&self.robot.links, o, &q[idx(o)]).inverse();
             // Setting the foot down moved the whole body by a rigid step (a millimetre, a
             // tilt of the sole): the window's past moves with it, so the fitted motion (and
             // the ZMP) sees no jump that the joints did not make.
-            let step = pelvis.then(&before.inv());
+            let step = pelvis * before.inverse();
             for h in &mut self.history {
                 h.com = step.apply(&h.com);
-                h.pelvis = step.then(&h.pelvis);
+                h.pelvis = step * h.pelvis;
             }
             soles = self.soles(&pelvis, q);
             if !t.is_nan() {
@@ -526,7 +469,7 @@ impl Body {
     /// file, not by the gait's code: the simulated world grades the gait's patterns.
     fn com(&self, pelvis: &Pose, q: &[Q; 2]) -> V3 {
         let m = &self.robot.mass;
-        let mut sum = pelvis.p.map(|v| v * m.pelvis);
+        let mut sum = pelvis.position().map(|v| v * m.pelvis);
         for leg in [Leg::Left, Leg::Right] {
             let (_, p) = archie::fk_points(&self.robot.links, leg, &q[idx(leg)]);
             let mid = |a: &V3, b: &V3| [0, 1, 2].map(|k| (a[k] + b[k]) / 2.0);
@@ -567,7 +510,7 @@ impl Body {
             });
             // The sole's corners and centre, just above its face.
             let foot = [[0.0, 0.0], [l, w], [-l, w], [-l, -w], [l, -w]]
-                .map(|c| pelvis.then(&sole).apply(&[b + c[0], c[1], 0.005]));
+                .map(|c| (pelvis * sole).apply(&[b + c[0], c[1], 0.005]));
             for (part, points) in [
                 ("shank", shank.collect::<Vec<_>>()),
                 ("foot", foot.to_vec()),
@@ -631,7 +574,7 @@ impl Body {
             quadratic(&ts, &vs, tm)
         };
         let com = [0, 1, 2].map(|k| fit(&|s: &Sample| s.com[k]));
-        let pel = [0, 1, 2].map(|k| fit(&|s: &Sample| s.pelvis.p[k]));
+        let pel = [0, 1, 2].map(|k| fit(&|s: &Sample| s.pelvis.translation.vector[k]));
         let mid = self
             .history
             .iter()
@@ -639,15 +582,12 @@ impl Body {
         let z = com[2][0] - mid.ground;
         let zmp = [0, 1].map(|k| com[k][0] - z / self.cfg.g * com[k][2]);
         // Angular velocity from the rotation across the window: R_last · R_firstᵀ.
-        let dr = stride_kinematics::math::mul(
-            &last.pelvis.r,
-            &stride_kinematics::math::tr(&first.pelvis.r),
-        );
+        let dr = (last.pelvis.rotation * first.pelvis.rotation.inverse()).into_inner();
         let dt = last.t - first.t;
         let w = [
-            (dr[2][1] - dr[1][2]) / 2.0 / dt,
-            (dr[0][2] - dr[2][0]) / 2.0 / dt,
-            (dr[1][0] - dr[0][1]) / 2.0 / dt,
+            (dr[(2, 1)] - dr[(1, 2)]) / 2.0 / dt,
+            (dr[(0, 2)] - dr[(2, 0)]) / 2.0 / dt,
+            (dr[(1, 0)] - dr[(0, 1)]) / 2.0 / dt,
         ];
         Some(Fitted {
             t: tm,
@@ -683,9 +623,9 @@ mod tests {
 
     /// Joints that put each sole at `feet` (sole centres, level) under a pelvis at `pelvis`.
     fn joints(r: &ArchieConfig, pelvis: [f64; 3], feet: [[f64; 3]; 2]) -> [Q; 2] {
-        let p = Pose::yawed(pelvis, 0.0);
+        let p = yawed(pelvis, 0.0);
         [Leg::Left, Leg::Right].map(|leg| {
-            let sole = p.inv().then(&r.sole_frame(feet[idx(leg)], 0.0));
+            let sole = p.inverse() * r.sole_frame(feet[idx(leg)], 0.0);
             archie::ik(&r.links, leg, &sole).unwrap()
         })
     }
@@ -736,7 +676,7 @@ mod tests {
             // foot leaves the ground, 6 mm up.)
             assert!((r0[0]).abs() < 5e-3 && (r0[1] + 0.1).abs() < 1e-9 && r0[2].abs() < 1e-9);
             let off = [r0[0], r0[1] + 0.1, r0[2]];
-            let p = body.state.pelvis.p;
+            let p = body.state.pelvis.position();
             assert!(
                 (0..3).all(|k| (p[k] - pelvis[k] - off[k]).abs() < 1e-9),
                 "{p:?}"
@@ -866,7 +806,7 @@ mod tests {
             (c[0] - 0.5).abs() < 0.1 && (c[1] - 0.2).abs() < 1e-9,
             "{c:?}"
         );
-        let q = quaternion(&body.state.pelvis.r);
+        let q = quaternion(&body.state.pelvis);
         assert!((q[0] - 1.0).abs() < 1e-12);
     }
 }
