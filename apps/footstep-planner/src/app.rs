@@ -12,7 +12,7 @@ use stride_footstep::planner::Limits;
 use stride_lcmtypes::stride::{
     FootT, FootstepPlanRequestT, FootstepPlanT, NodeStatusT, ObstacleListT,
 };
-use stride_node::{outln, AppConfig, ConfigUse, Node, NodeArgs, Stamper, Tick};
+use stride_node::{outln, AppConfig, ConfigUse, Done, Node, NodeArgs, Stamper, Tick, Worker};
 
 use crate::node::{
     obstacles_of, plan_request, request_at, to_msg, Job, Reason, Replanner, Scheduler, World,
@@ -279,43 +279,17 @@ impl AppConfig for PlannerConfig {
     }
 }
 
-/// What the search thread sends back: the job and its answer, or the panic's message.
-type Done = (Job, Result<(FootstepPlanT, Vec<V2>, f64), String>, Duration);
+/// A search's answer: the plan, the path it followed and its inflation.
+type Answer = (FootstepPlanT, Vec<V2>, f64);
 
-/// The search thread: one job at a time; a search that panics is answered, not lost.
-/// What the search thread runs on a job: the planners, or another search in a test.
-type Search = fn(&FootstepPlanRequestT, &World, &Limits, &Cancel) -> (FootstepPlanT, Vec<V2>, f64);
-
-fn spawn_worker(
+/// The search thread, running the planners (or another search in a test) on each job.
+fn search_thread(
     limits: Limits,
-    search: Search,
-) -> std::io::Result<(
-    mpsc::Sender<Job>,
-    mpsc::Receiver<Done>,
-    std::thread::JoinHandle<()>,
-)> {
-    let (jobs, job_rx) = mpsc::channel::<Job>();
-    let (done, results) = mpsc::channel();
-    let worker = std::thread::Builder::new()
-        .name("search".into())
-        .spawn(move || {
-            while let Ok(job) = job_rx.recv() {
-                let t = Instant::now();
-                let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    search(&job.req, &job.world, &limits, &job.cancel)
-                }))
-                .map_err(|p| {
-                    p.downcast_ref::<&str>()
-                        .map(|s| s.to_string())
-                        .or_else(|| p.downcast_ref::<String>().cloned())
-                        .unwrap_or_else(|| "a panic".into())
-                });
-                if done.send((job, out, t.elapsed())).is_err() {
-                    break;
-                }
-            }
-        })?;
-    Ok((jobs, results, worker))
+    search: fn(&FootstepPlanRequestT, &World, &Limits, &Cancel) -> Answer,
+) -> std::io::Result<Worker<Job, Answer>> {
+    Worker::spawn("search", move |job: &Job| {
+        search(&job.req, &job.world, &limits, &job.cancel)
+    })
 }
 
 /// What the node has answered, for its status.
@@ -341,9 +315,7 @@ pub struct PlannerApp {
     _subs: [lcm::Subscription; 2],
     requests: mpsc::Receiver<FootstepPlanRequestT>,
     obstacles: mpsc::Receiver<ObstacleListT>,
-    jobs: mpsc::Sender<Job>,
-    results: mpsc::Receiver<Done>,
-    worker: std::thread::JoinHandle<()>,
+    worker: Worker<Job, Answer>,
     scheduler: Scheduler,
     stamper: Stamper,
     replanner: Replanner,
@@ -364,7 +336,7 @@ impl PlannerApp {
         // A burst of requests waits for the loop rather than being dropped: each is answered.
         req_sub.set_queue_capacity(10_000)?;
         let (obs_sub, obstacles) = node.queue::<ObstacleListT>(&cli.obstacle_channel)?;
-        let (jobs, results, worker) = spawn_worker(cfg.limits(), plan_request)?;
+        let worker = search_thread(cfg.limits(), plan_request)?;
         Ok(PlannerApp {
             scheduler: Scheduler::new(cfg.max_waiting),
             cli,
@@ -373,8 +345,6 @@ impl PlannerApp {
             _subs: [req_sub, obs_sub],
             requests,
             obstacles,
-            jobs,
-            results,
             worker,
             stamper: Stamper::new("world"),
             replanner: Replanner::default(),
@@ -415,22 +385,17 @@ impl PlannerApp {
         self.supersede(node, gone, &format!("superseded by request {id}"));
     }
 
-    /// Hands the next job to the search thread, starting the thread again if it died.
+    /// Hands the next job to the search thread (started again if it died).
     fn dispatch(&mut self) -> anyhow::Result<()> {
-        let Some(job) = self.scheduler.start_next() else {
-            return Ok(());
-        };
-        if let Err(mpsc::SendError(job)) = self.jobs.send(job) {
-            tracing::error!("the search thread has gone; starting it again");
-            self.counts.restarts += 1;
-            let (jobs, results, worker) = spawn_worker(self.cfg.limits(), plan_request)?;
-            (self.jobs, self.results, self.worker) = (jobs, results, worker);
-            let _ = self.jobs.send(job);
+        if let Some(job) = self.scheduler.start_next() {
+            // The scheduler starts a job only when none runs: nothing waits in the thread.
+            let _ = self.worker.offer(job)?;
+            self.counts.restarts = self.worker.restarts();
         }
         Ok(())
     }
 
-    fn answer(&mut self, node: &Node, (job, out, took): Done) {
+    fn answer(&mut self, node: &Node, Done { job, out, took }: Done<Job, Answer>) {
         self.scheduler.done();
         let mut msg = match out {
             Ok((msg, path, inflation)) => {
@@ -511,7 +476,7 @@ impl Tick for PlannerApp {
                 }
             }
         }
-        while let Ok(done) = self.results.try_recv() {
+        while let Some(done) = self.worker.try_recv()? {
             self.answer(node, done);
         }
         self.dispatch()?;
@@ -530,13 +495,10 @@ impl Tick for PlannerApp {
         // The running search is cancelled; every request still waiting is answered.
         let waiting = self.scheduler.stop();
         self.supersede(node, waiting, "the planner is shutting down");
-        if self.scheduler.busy() {
-            if let Ok(done) = self.results.recv_timeout(Duration::from_secs(5)) {
-                self.answer(node, done);
-            }
+        let (last, _) = self.worker.stop(Duration::from_secs(5));
+        if let Some(done) = last {
+            self.answer(node, done);
         }
-        drop(self.jobs);
-        let _ = self.worker.join();
         let c = self.counts;
         tracing::info!(
             planned = c.planned,
@@ -576,7 +538,7 @@ mod tests {
         world: &World,
         limits: &Limits,
         cancel: &Cancel,
-    ) -> (FootstepPlanT, Vec<V2>, f64) {
+    ) -> Answer {
         if req.request_id % 2 == 1 {
             panic!("a planner bug on request {}", req.request_id);
         }
@@ -585,23 +547,23 @@ mod tests {
 
     #[test]
     fn a_search_that_panics_is_answered_and_the_thread_goes_on() {
-        let (jobs, results, worker) = spawn_worker(Limits::default(), panics_on_odd).unwrap();
+        let mut worker = search_thread(Limits::default(), panics_on_odd).unwrap();
         for id in [1, 2, 3, 4] {
-            jobs.send(job(id)).unwrap();
-        }
-        let got: Vec<Done> = (0..4)
-            .map(|_| results.recv_timeout(Duration::from_secs(10)).unwrap())
-            .collect();
-        for (j, out, _) in &got {
-            match j.req.request_id % 2 {
+            worker.offer(job(id)).unwrap();
+            let d = worker
+                .recv_timeout(Duration::from_secs(10))
+                .unwrap()
+                .unwrap();
+            match d.job.req.request_id % 2 {
                 1 => assert!(
-                    out.as_ref().is_err_and(|e| e.contains("a planner bug")),
-                    "{out:?}"
+                    d.out.as_ref().is_err_and(|e| e.contains("a planner bug")),
+                    "{:?}",
+                    d.out
                 ),
-                _ => assert_eq!(out.as_ref().unwrap().0.status, FootstepPlanT::STATUS_OK),
+                _ => assert_eq!(d.out.as_ref().unwrap().0.status, FootstepPlanT::STATUS_OK),
             }
         }
-        drop(jobs);
-        worker.join().unwrap();
+        let (last, waiting) = worker.stop(Duration::from_secs(1));
+        assert!(last.is_none() && waiting.is_none());
     }
 }

@@ -16,6 +16,7 @@ mod heartbeat;
 pub mod realtime;
 mod stamp;
 mod throttle;
+mod worker;
 
 pub use app::{
     app_config, check_log_filter, is_broken_pipe, main, stdout_closed, tool, AppConfig, ConfigUse,
@@ -24,6 +25,7 @@ pub use app::{
 pub use config::load_config;
 pub use stamp::Stamper;
 pub use throttle::{Note, Throttle};
+pub use worker::{Done, Worker};
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
