@@ -22,6 +22,9 @@ pub struct Done<J, R> {
 
 type Run<J, R> = Arc<dyn Fn(&J) -> R + Send + Sync>;
 
+/// A started thread: where jobs go in, where answers come out, and the thread.
+type Started<J, R> = (mpsc::Sender<J>, mpsc::Receiver<Done<J, R>>, JoinHandle<()>);
+
 /// A job thread (see the module).
 pub struct Worker<J, R> {
     name: String,
@@ -37,7 +40,7 @@ pub struct Worker<J, R> {
 fn spawn<J: Send + 'static, R: Send + 'static>(
     name: &str,
     run: Run<J, R>,
-) -> std::io::Result<(mpsc::Sender<J>, mpsc::Receiver<Done<J, R>>, JoinHandle<()>)> {
+) -> std::io::Result<Started<J, R>> {
     let (jobs, job_rx) = mpsc::channel::<J>();
     let (done, results) = mpsc::channel();
     let thread = std::thread::Builder::new()
