@@ -62,8 +62,10 @@ fn dare(
     let mut g = b * b.transpose() / r;
     let mut h = *q;
     for _ in 0..200 {
-        // W = (I + G H)⁻¹
+        // W = (I + G H)⁻¹, by LU with partial pivoting (I + G H is ill-conditioned: with
+        // R = 10⁻⁶ the cofactor formula of a 4 × 4 inverse loses the gains' third digit).
         let w = (Matrix4::identity() + g * h)
+            .lu()
             .try_inverse()
             .ok_or_else(|| GaitError::Parameter("the Riccati iteration is singular".into()))?;
         let aw = ak * w;
