@@ -11,7 +11,7 @@ use stride_link_host::Session;
 use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
 use stride_serial::{LineSpec, Paced, Transport};
 
-use crate::{imu_msg, state_msgs, Attitude, LinkConfig, ACCEL_COUNTS_PER_G, GYRO_COUNTS_PER_RAD_S};
+use crate::{imu, imu_msg, state_msgs, Attitude, LinkConfig};
 
 /// Drive one Arduino Due joint-controller board (a leg of Archie) from LCM.
 ///
@@ -219,7 +219,7 @@ impl ArduinoApp {
                         let Some(st) = joints.get(i) else {
                             continue;
                         };
-                        let over = st.current as f64 / 1000.0 > self.cfg.current_limit_a;
+                        let over = st.current_a() > self.cfg.current_limit_a;
                         if over && !self.braked_by_host[i] {
                             self.braked_by_host[i] = true;
                             brake.push(JointCommand {
@@ -247,8 +247,8 @@ impl ArduinoApp {
                         .map_or(0.0, |t| t_us.wrapping_sub(t) as f64 * 1e-6);
                     self.last_imu = Some(t_us);
                     self.attitude.update(
-                        accel.map(|a| a as f64 / ACCEL_COUNTS_PER_G),
-                        gyro.map(|g| g as f64 / GYRO_COUNTS_PER_RAD_S),
+                        imu::accel_g(accel),
+                        imu::gyro_rad_s(gyro),
                         dt,
                     );
                     self.imu_raw = (accel, gyro);

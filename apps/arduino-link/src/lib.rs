@@ -138,22 +138,34 @@ impl LinkConfig {
         for (k, &i) in cols.iter().enumerate() {
             let j = &self.joint[i];
             let v = c.setpoints[k];
-            let (mode, value) = match c.modes[k] {
+            let unfit = |what: String| Reject::Limit {
+                joint: j.name.clone(),
+                what,
+            };
+            let command = match c.modes[k] {
                 JointCommandT::MODE_DUTY => {
                     if v.is_nan() || v.abs() > j.max_duty {
-                        return Err(Reject::Limit {
-                            joint: j.name.clone(),
-                            what: format!("duty {v:.3} beyond ±{}", j.max_duty),
-                        });
+                        return Err(unfit(format!("duty {v:.3} beyond ±{}", j.max_duty)));
                     }
-                    (Mode::Duty, (v * 10_000.0).round() as i16)
+                    JointCommand::duty(j.index, v)
+                        .ok_or_else(|| unfit(format!("duty {v:.3} beyond the wire's ±3.2767")))?
                 }
                 JointCommandT::MODE_POSITION => {
                     j.limits().position(&j.name, v)?;
-                    (Mode::Position, (v * 10_000.0).round() as i16)
+                    JointCommand::position(j.index, v).ok_or_else(|| {
+                        unfit(format!("position {v:.4} rad beyond the wire's ±3.2767 rad"))
+                    })?
                 }
-                JointCommandT::MODE_BRAKE => (Mode::Brake, 0),
-                JointCommandT::MODE_DISABLE => (Mode::Coast, 0),
+                JointCommandT::MODE_BRAKE => JointCommand {
+                    joint: j.index,
+                    mode: Mode::Brake,
+                    value: 0,
+                },
+                JointCommandT::MODE_DISABLE => JointCommand {
+                    joint: j.index,
+                    mode: Mode::Coast,
+                    value: 0,
+                },
                 _ => {
                     return Err(Reject::Mode {
                         joint: j.name.clone(),
@@ -161,11 +173,7 @@ impl LinkConfig {
                     })
                 }
             };
-            out.push(JointCommand {
-                joint: j.index,
-                mode,
-                value,
-            });
+            out.push(command);
         }
         Ok(out)
     }
@@ -188,12 +196,7 @@ impl LinkConfig {
 /// Why a command was refused: the check every bridge makes.
 pub use stride_limits::Reject;
 
-/// MPU-6050 at ±2 g and ±250 °/s: counts per g and per rad/s.
-pub const ACCEL_COUNTS_PER_G: f64 = 16_384.0;
-/// Gyro counts per rad/s.
-pub const GYRO_COUNTS_PER_RAD_S: f64 = 131.0 * 180.0 / std::f64::consts::PI;
-/// Standard gravity, m/s².
-pub const G: f64 = 9.806_65;
+pub use stride_link::imu;
 
 /// A complementary filter: roll and pitch from the gyro, pulled towards the accelerometer's
 /// gravity direction with time constant `tau`; yaw from the gyro alone.
@@ -255,9 +258,9 @@ pub fn imu_msg(
     ImuT {
         header,
         orientation: att.quaternion(),
-        angular_velocity: gyro.map(|g| g as f64 / GYRO_COUNTS_PER_RAD_S),
-        linear_acceleration: accel.map(|a| a as f64 / ACCEL_COUNTS_PER_G * G),
-        temperature: (temperature as f32) / 340.0 + 36.53,
+        angular_velocity: imu::gyro_rad_s(gyro),
+        linear_acceleration: imu::accel_g(accel).map(|a| a * imu::G),
+        temperature: imu::temperature_c(temperature) as f32,
     }
 }
 
@@ -277,20 +280,11 @@ pub fn state_msgs(
         .collect();
     let n = picked.len();
     let names: Vec<String> = picked.iter().map(|(j, _)| j.name.clone()).collect();
-    let positions: Vec<f64> = picked
-        .iter()
-        .map(|(_, s)| s.position as f64 * 1e-5)
-        .collect();
-    let velocities: Vec<f64> = picked
-        .iter()
-        .map(|(_, s)| s.velocity as f64 * 1e-3)
-        .collect();
-    let currents: Vec<f32> = picked
-        .iter()
-        .map(|(_, s)| s.current as f32 / 1000.0)
-        .collect();
+    let positions: Vec<f64> = picked.iter().map(|(_, s)| s.position_rad()).collect();
+    let velocities: Vec<f64> = picked.iter().map(|(_, s)| s.velocity_rad_s()).collect();
+    let currents: Vec<f32> = picked.iter().map(|(_, s)| s.current_a() as f32).collect();
     let temperatures: Vec<f32> = picked.iter().map(|(_, s)| s.temperature as f32).collect();
-    let faults: Vec<i8> = picked.iter().map(|(_, s)| (s.flags >> 1) as i8).collect();
+    let faults: Vec<i8> = picked.iter().map(|(_, s)| s.faults() as i8).collect();
     let arduino = ArduinoJointStateT {
         header: header.clone(),
         port: cfg.port.to_string(),

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use stride_footstep::plan::{Cancel, Plan, Stats, Status};
-use stride_footstep::planner::Limits;
+use stride_footstep::planner::{Limits, Which};
 use stride_lcmtypes::stride::{
     FootT, FootstepPlanRequestT, FootstepPlanT, NodeStatusT, ObstacleListT,
 };
@@ -61,8 +61,8 @@ pub struct Cli {
     /// 1 otherwise).
     #[arg(long, value_name = "X,Y", value_parser = parse_goal)]
     pub ask: Option<(f64, f64)>,
-    /// With --ask: which planner.
-    #[arg(long, value_enum, default_value = "archie")]
+    /// With --ask: which planner: archie, kaist or lola.
+    #[arg(long, default_value = "archie")]
     planner: Which,
     /// With --ask: the thesis's planner instead of the improved one.
     #[arg(long)]
@@ -76,17 +76,6 @@ pub struct Cli {
 }
 
 stride_node::node_cli!(Cli);
-
-/// The planners, as --planner names them.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-enum Which {
-    /// Archie's path planner (seed 000).
-    Archie,
-    /// The KAIST energy A* (seed 004).
-    Kaist,
-    /// LOLA's footstep A* (seed 002).
-    Lola,
-}
 
 fn parse_goal(s: &str) -> Result<(f64, f64), String> {
     let (x, y) = s
@@ -134,11 +123,7 @@ impl Asker {
         let (sub, plans) = node.queue::<FootstepPlanT>(&cli.plan_channel)?;
         let id = std::process::id() as i64;
         let mut req = request_at(id, 0, v2(0.0, 0.0), 0.0, v2(goal.0, goal.1));
-        req.planner = match cli.planner {
-            Which::Archie => FootstepPlanRequestT::PLANNER_ARCHIE,
-            Which::Kaist => FootstepPlanRequestT::PLANNER_KAIST,
-            Which::Lola => FootstepPlanRequestT::PLANNER_LOLA,
-        };
+        req.planner = cli.planner.id();
         req.faithful = cli.faithful;
         req.max_time_us = cli.budget_ms.saturating_mul(1000).min(i64::MAX as u64) as i64;
         node.lcm().publish(&cli.request_channel, &req)?;

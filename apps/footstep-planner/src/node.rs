@@ -131,21 +131,13 @@ pub fn plan_request(
     let stance = v2(req.stance.x, req.stance.y);
     let swing = v2(req.swing.x, req.swing.y);
     let start = (stance + swing) * 0.5;
-    let which = match req.planner {
-        FootstepPlanRequestT::PLANNER_ARCHIE => Some(Which::Archie),
-        FootstepPlanRequestT::PLANNER_KAIST => Some(Which::Kaist),
-        FootstepPlanRequestT::PLANNER_LOLA => Some(Which::Lola),
-        _ => None,
-    };
     let refuse = |why: String| {
         let plan = Plan::failed(Status::NoPath, why, Stats::default());
         (to_msg(req, &plan, 0, true), Vec::new(), 0.0)
     };
-    let Some(which) = which else {
-        return refuse(format!(
-            "unknown planner {} (PLANNER_ARCHIE, PLANNER_KAIST or PLANNER_LOLA)",
-            req.planner
-        ));
+    let which = match Which::try_from(req.planner) {
+        Ok(w) => w,
+        Err(why) => return refuse(why),
     };
     let numbers = [
         req.stance.x,
@@ -515,6 +507,24 @@ impl Scheduler {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_planners_numbers_are_the_messages_constants() {
+        let constants = [
+            (Which::Archie, FootstepPlanRequestT::PLANNER_ARCHIE),
+            (Which::Kaist, FootstepPlanRequestT::PLANNER_KAIST),
+            (Which::Lola, FootstepPlanRequestT::PLANNER_LOLA),
+        ];
+        for (w, id) in constants {
+            assert_eq!(w.id(), id);
+            assert_eq!(Which::try_from(id), Ok(w));
+            assert_eq!(w.to_string().parse::<Which>(), Ok(w));
+        }
+        assert!(Which::try_from(3)
+            .unwrap_err()
+            .contains("unknown planner 3"));
+        assert!("hexapod".parse::<Which>().is_err());
+    }
 
     fn plan(req: &FootstepPlanRequestT, world: &World) -> (FootstepPlanT, Vec<V2>, f64) {
         plan_request(req, world, &Limits::default(), &Cancel::new())

@@ -8,6 +8,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
+use stride_footstep::planner::Which;
 use stride_gait::archie::{ArchieGait, HeightConfig};
 use stride_gait::hexapod::HexGaitConfig;
 use stride_gait::pattern::Generator;
@@ -929,14 +930,10 @@ impl GoalConfig {
 
     /// The request's planner constant.
     pub fn planner_id(&self) -> Result<i8, String> {
-        match self.planner.as_str() {
-            "archie" => Ok(FootstepPlanRequestT::PLANNER_ARCHIE),
-            "kaist" => Ok(FootstepPlanRequestT::PLANNER_KAIST),
-            "lola" => Ok(FootstepPlanRequestT::PLANNER_LOLA),
-            other => Err(format!(
-                "goal.planner {other:?}: one of \"archie\", \"kaist\", \"lola\""
-            )),
-        }
+        self.planner
+            .parse::<Which>()
+            .map(Which::id)
+            .map_err(|e| format!("goal.planner: {e}"))
     }
 }
 
@@ -1226,9 +1223,7 @@ pub fn request_msg(
         } else {
             cfg.yaw_tolerance
         },
-        planner: cfg
-            .planner_id()
-            .unwrap_or(FootstepPlanRequestT::PLANNER_ARCHIE),
+        planner: cfg.planner_id().unwrap_or(Which::Archie.id()),
         faithful: cfg.faithful,
         max_expansions: 0,
         max_time_us: cfg.budget_ms as i64 * 1000,

@@ -376,6 +376,90 @@ pub struct JointState {
     pub flags: u8,
 }
 
+impl JointState {
+    /// Position, rad.
+    pub fn position_rad(&self) -> f64 {
+        self.position as f64 * 1e-5
+    }
+
+    /// Velocity, rad/s.
+    pub fn velocity_rad_s(&self) -> f64 {
+        self.velocity as f64 * 1e-3
+    }
+
+    /// Current, A.
+    pub fn current_a(&self) -> f64 {
+        self.current as f64 / 1000.0
+    }
+
+    /// Duty applied, a fraction of full (-1 to 1).
+    pub fn duty_fraction(&self) -> f64 {
+        self.duty as f64 / 10_000.0
+    }
+
+    /// True while the brake is engaged.
+    pub fn braked(&self) -> bool {
+        self.flags & 1 != 0
+    }
+
+    /// The fault bits ([`fault`]), the flags without the brake's.
+    pub fn faults(&self) -> u8 {
+        self.flags >> 1
+    }
+}
+
+impl JointCommand {
+    /// A duty set-point: `fraction` of full (-1 to 1) in the wire's 1/10000; None beyond.
+    pub fn duty(joint: u8, fraction: f64) -> Option<JointCommand> {
+        wire_ten_thousandths(fraction).map(|value| JointCommand {
+            joint,
+            mode: Mode::Duty,
+            value,
+        })
+    }
+
+    /// A position set-point for the board's own loop: `rad` in the wire's 1/10000 rad
+    /// (±3.2767 rad); None beyond.
+    pub fn position(joint: u8, rad: f64) -> Option<JointCommand> {
+        wire_ten_thousandths(rad).map(|value| JointCommand {
+            joint,
+            mode: Mode::Position,
+            value,
+        })
+    }
+}
+
+/// `v` in 1/10000 as the wire's i16, or None when it does not fit (or is not finite).
+fn wire_ten_thousandths(v: f64) -> Option<i16> {
+    let x = (v * 10_000.0).round();
+    (x.is_finite() && x >= i16::MIN as f64 && x <= i16::MAX as f64).then_some(x as i16)
+}
+
+/// The board's MPU-6050 at ±2 g and ±250 °/s, in SI units.
+pub mod imu {
+    /// Accelerometer counts per g.
+    pub const ACCEL_COUNTS_PER_G: f64 = 16_384.0;
+    /// Gyroscope counts per rad/s.
+    pub const GYRO_COUNTS_PER_RAD_S: f64 = 131.0 * 180.0 / std::f64::consts::PI;
+    /// Standard gravity, m/s².
+    pub const G: f64 = 9.806_65;
+
+    /// Acceleration, in g.
+    pub fn accel_g(counts: [i16; 3]) -> [f64; 3] {
+        counts.map(|a| a as f64 / ACCEL_COUNTS_PER_G)
+    }
+
+    /// Angular velocity, rad/s.
+    pub fn gyro_rad_s(counts: [i16; 3]) -> [f64; 3] {
+        counts.map(|g| g as f64 / GYRO_COUNTS_PER_RAD_S)
+    }
+
+    /// The die's temperature, °C (the MPU-6050's datasheet: counts / 340 + 36.53).
+    pub fn temperature_c(counts: i16) -> f64 {
+        counts as f64 / 340.0 + 36.53
+    }
+}
+
 /// What HELLO_ACK says of the board.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub struct BoardInfo {

@@ -68,6 +68,68 @@ fn scene_for(world: &Scene, req: &Request) -> Scene {
 }
 
 impl Which {
+    /// The three, in the order of their numbers.
+    pub const ALL: [Which; 3] = [Which::Archie, Which::Kaist, Which::Lola];
+
+    /// The planner's name: "archie", "kaist" or "lola" (configuration, command lines).
+    pub fn name(self) -> &'static str {
+        match self {
+            Which::Archie => "archie",
+            Which::Kaist => "kaist",
+            Which::Lola => "lola",
+        }
+    }
+
+    /// The planner's number: the `PLANNER_*` constants of stride.footstep_plan_request_t
+    /// (ARCHIE 0, KAIST 1, LOLA 2).
+    pub fn id(self) -> i8 {
+        match self {
+            Which::Archie => 0,
+            Which::Kaist => 1,
+            Which::Lola => 2,
+        }
+    }
+}
+
+impl std::fmt::Display for Which {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Which {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Which, String> {
+        Which::ALL
+            .into_iter()
+            .find(|w| w.name() == s)
+            .ok_or_else(|| format!("unknown planner {s:?}: one of \"archie\", \"kaist\", \"lola\""))
+    }
+}
+
+impl TryFrom<i8> for Which {
+    type Error = String;
+
+    fn try_from(id: i8) -> Result<Which, String> {
+        Which::ALL
+            .into_iter()
+            .find(|w| w.id() == id)
+            .ok_or_else(|| {
+                format!(
+                    "unknown planner {id} (PLANNER_ARCHIE 0, PLANNER_KAIST 1 or PLANNER_LOLA 2)"
+                )
+            })
+    }
+}
+
+impl From<Which> for i8 {
+    fn from(w: Which) -> i8 {
+        w.id()
+    }
+}
+
+impl Which {
     /// The planner's own budget, when a request gives none: LOLA's 400 ms (the thesis's
     /// navigation cycle), 200 ms for the others (Archie's planners take far less).
     pub fn default_budget(self) -> Duration {
