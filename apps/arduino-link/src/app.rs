@@ -246,11 +246,8 @@ impl ArduinoApp {
                         .last_imu
                         .map_or(0.0, |t| t_us.wrapping_sub(t) as f64 * 1e-6);
                     self.last_imu = Some(t_us);
-                    self.attitude.update(
-                        imu::accel_g(accel),
-                        imu::gyro_rad_s(gyro),
-                        dt,
-                    );
+                    self.attitude
+                        .update(imu::accel_g(accel), imu::gyro_rad_s(gyro), dt);
                     self.imu_raw = (accel, gyro);
                     let msg = imu_msg(
                         self.stamper.stamp(),

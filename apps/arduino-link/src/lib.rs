@@ -381,6 +381,24 @@ mod tests {
     }
 
     #[test]
+    fn a_position_beyond_the_wires_field_is_refused_not_wrapped() {
+        // A joint configured wider than the wire's ±3.2767 rad: its limits pass 3.5 rad, the
+        // i16 field of 1/10000 rad cannot hold it (cast, it would wrap to -3.0536 rad).
+        let mut cfg = shipped("archie-arduino-left-leg.toml");
+        let j = &mut cfg.joint[0];
+        (j.min_position, j.max_position) = (-4.0, 4.0);
+        let name = j.name.clone();
+        let ok = cfg
+            .to_board(&cmd(&name, JointCommandT::MODE_POSITION, 3.2))
+            .unwrap();
+        assert_eq!(ok[0].value, 32_000);
+        match cfg.to_board(&cmd(&name, JointCommandT::MODE_POSITION, 3.5)) {
+            Err(Reject::Limit { what, .. }) => assert!(what.contains("wire"), "{what}"),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
     fn a_synthetic_stream_converges_to_the_known_tilt() {
         // Tilted by roll 0.3, pitch -0.2, with a gyro bias and noise, at 100 Hz for 5 s.
         let (roll, pitch) = (0.3f64, -0.2f64);
