@@ -6,8 +6,8 @@ use std::time::{Duration, Instant};
 use stride_fakes::due::{DueConfig, DueLevers, FakeDue};
 use stride_fakes::Sim;
 use stride_lcmtypes::stride::{JointCommandT, JointStateT, NodeStatusT};
-use stride_link::{JointCommand, Message, Mode};
-use stride_link_host::Session;
+use stride_link::Message;
+use stride_link_host::{Board, BoardConfig, BoardEvent};
 use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Stamper, Tick};
 use stride_serial::{LineSpec, Paced, Transport};
 
@@ -49,8 +49,8 @@ impl AppConfig for LinkConfig {
 
 /// The running link: connected to the board or trying to be.
 pub struct ArduinoApp {
-    // Dropped in this order: the session (its line) before the fake board.
-    session: Option<Session<Box<dyn Transport>>>,
+    // Dropped in this order: the board's session (its line) before the fake board.
+    board: Option<Board<Box<dyn Transport>>>,
     sim: Option<Sim<FakeDue>>,
     _sub: lcm::Subscription,
     rx: std::sync::mpsc::Receiver<JointCommandT>,
@@ -58,13 +58,10 @@ pub struct ArduinoApp {
     stamper: Stamper,
     period: Period,
     next_try: Instant,
-    last_sent: Instant,
-    last_heard: Instant,
     attitude: Attitude,
     last_imu: Option<u32>,
     imu_raw: ([i16; 3], [i16; 3]),
     rejected: u64,
-    braked_by_host: [bool; 8],
     /// The last reason the board could not be reached, said once on the console.
     last_failure: String,
     /// The fake board's levers (its true positions) and where they go
@@ -82,20 +79,17 @@ impl ArduinoApp {
         node.set_health(NodeStatusT::STATE_STARTING, "connecting to the board");
         let now = Instant::now();
         Ok(ArduinoApp {
-            session: None,
+            board: None,
             sim: None,
             _sub: sub,
             rx,
             stamper: Stamper::new(&cfg.board),
             period: Period::hz(cfg.rate_hz),
             next_try: now,
-            last_sent: now,
-            last_heard: now,
             attitude: Attitude::new(cfg.imu_time_constant_s),
             last_imu: None,
             imu_raw: ([0; 3], [0; 3]),
             rejected: 0,
-            braked_by_host: [false; 8],
             last_failure: String::new(),
             truth: cli
                 .true_state_channel
@@ -109,7 +103,7 @@ impl ArduinoApp {
     fn open(&mut self) -> std::io::Result<Box<dyn Transport>> {
         if self.cfg.port == LineSpec::Sim {
             let (host, dev) = stride_serial::pty_pair(self.cfg.baud)?;
-            self.session = None;
+            self.board = None;
             let mut sim = Sim::new();
             let board = FakeDue::new(DueConfig::default());
             let levers = self
@@ -140,20 +134,24 @@ impl ArduinoApp {
             return;
         }
         self.next_try = now + Duration::from_millis(self.cfg.reconnect_ms);
-        let mut s = match self.open() {
-            Ok(line) => Session::new(line),
+        let line = match self.open() {
+            Ok(line) => line,
             Err(e) => return self.unreachable(node, e.to_string()),
         };
         let handshake = Duration::from_millis(self.cfg.handshake_timeout_ms);
-        match s.handshake(handshake, Duration::from_millis(250)) {
-            Ok(b) => {
+        let watch = BoardConfig {
+            current_limit_a: self.cfg.current_limit_a,
+            joints: self.cfg.joint.iter().map(|j| j.index).collect(),
+            ..BoardConfig::default()
+        };
+        match Board::connect(line, watch, handshake, Duration::from_millis(250)) {
+            Ok((board, b)) => {
                 tracing::info!(
                     firmware = b.firmware.as_str(),
                     joints = b.joints,
                     "board connected"
                 );
-                self.session = Some(s);
-                self.last_heard = Instant::now();
+                self.board = Some(board);
                 self.attitude = Attitude::new(self.cfg.imu_time_constant_s);
                 self.last_imu = None;
                 self.last_failure.clear();
@@ -164,18 +162,15 @@ impl ArduinoApp {
     }
 
     /// One turn with the board: commands (or a heartbeat) out, its frames in. An I/O error
-    /// loses the session.
+    /// (or a silent board) loses the session.
     fn serve(&mut self, node: &Node, now: Instant) -> Result<(), std::io::Error> {
-        let Some(s) = self.session.as_mut() else {
+        let Some(board) = self.board.as_mut() else {
             return Ok(());
         };
-        // Commands, checked; heartbeats when there are none.
+        // Commands, checked.
         while let Ok(c) = self.rx.try_recv() {
             match self.cfg.to_board(&c) {
-                Ok(joints) => {
-                    s.send(&Message::Command(joints))?;
-                    self.last_sent = now;
-                }
+                Ok(joints) => board.command(joints, now)?,
                 Err(e) => {
                     self.rejected += 1;
                     tracing::warn!(error = %e, rejected = self.rejected, "command rejected");
@@ -186,26 +181,23 @@ impl ArduinoApp {
                 }
             }
         }
-        if now.saturating_duration_since(self.last_sent) >= Duration::from_millis(50) {
-            s.send(&Message::Heartbeat(node.uptime().as_millis() as u32))?;
-            self.last_sent = now;
-        }
-        // What the board sent.
-        let msgs = s.receive(Instant::now() + Duration::from_millis(1))?;
-        if !msgs.is_empty() {
-            self.last_heard = now;
-        } else if now.saturating_duration_since(self.last_heard) > Duration::from_millis(500) {
-            // The board streams its state at 100 Hz: half a second of silence is a lost link.
-            return Err(std::io::Error::new(
-                std::io::ErrorKind::TimedOut,
-                "the board has been silent for 500 ms",
-            ));
-        }
-        let firmware = s.board().map(|b| b.firmware.clone()).unwrap_or_default();
-        let lost = (s.stats().lost + s.stats().bad) as i32;
-        let mut brake: Vec<JointCommand> = Vec::new();
+        let uptime = node.uptime().as_millis() as u32;
+        let events = board.pump(now, uptime, Instant::now() + Duration::from_millis(1))?;
+        let firmware = board.info().map(|b| b.firmware.clone()).unwrap_or_default();
+        let lost = (board.stats().lost + board.stats().bad) as i32;
         let lcm = node.lcm();
-        for m in msgs {
+        for e in events {
+            let m = match e {
+                BoardEvent::Message(m) => m,
+                BoardEvent::Braked { joint, current_a } => {
+                    let who = self.joint_name(joint);
+                    node.set_health(
+                        NodeStatusT::STATE_DEGRADED,
+                        format!("{who}: {:.0} mA over the limit: braked", current_a * 1000.0),
+                    );
+                    continue;
+                }
+            };
             match m {
                 Message::State { joints, .. } => {
                     let header = self.stamper.stamp();
@@ -213,28 +205,6 @@ impl ArduinoApp {
                         state_msgs(&self.cfg, header, &firmware, &joints, self.imu_raw, lost);
                     let _ = lcm.publish(&self.cfg.state_channel, &a);
                     let _ = lcm.publish(&self.cfg.joint_state_channel, &j);
-                    // The host's own current limit.
-                    for jc in &self.cfg.joint {
-                        let i = jc.index as usize;
-                        let Some(st) = joints.get(i) else {
-                            continue;
-                        };
-                        let over = st.current_a() > self.cfg.current_limit_a;
-                        if over && !self.braked_by_host[i] {
-                            self.braked_by_host[i] = true;
-                            brake.push(JointCommand {
-                                joint: jc.index,
-                                mode: Mode::Brake,
-                                value: 0,
-                            });
-                            node.set_health(
-                                NodeStatusT::STATE_DEGRADED,
-                                format!("{}: {} mA over the limit: braked", jc.name, st.current),
-                            );
-                        } else if !over {
-                            self.braked_by_host[i] = false;
-                        }
-                    }
                 }
                 Message::Imu {
                     t_us,
@@ -263,12 +233,7 @@ impl ArduinoApp {
                     bits,
                     detail,
                 } => {
-                    let who = self
-                        .cfg
-                        .joint
-                        .iter()
-                        .find(|j| j.index == joint)
-                        .map_or_else(|| "board".to_string(), |j| j.name.clone());
+                    let who = self.joint_name(joint);
                     let what = stride_link::fault::names(bits);
                     tracing::warn!(
                         who = who.as_str(),
@@ -287,10 +252,16 @@ impl ArduinoApp {
                 _ => {}
             }
         }
-        if !brake.is_empty() {
-            s.send(&Message::Command(brake))?;
-        }
         Ok(())
+    }
+
+    /// The configured name of board joint `index`, or "board".
+    fn joint_name(&self, index: u8) -> String {
+        self.cfg
+            .joint
+            .iter()
+            .find(|j| j.index == index)
+            .map_or_else(|| "board".to_string(), |j| j.name.clone())
     }
 }
 
@@ -298,7 +269,7 @@ impl Tick for ArduinoApp {
     const WAKE_ON_MESSAGE: bool = false;
 
     fn tick(&mut self, node: &Node, now: Instant) -> anyhow::Result<Instant> {
-        if self.session.is_none() {
+        if self.board.is_none() {
             self.connect(node, now);
         } else if let Err(e) = self.serve(node, now) {
             tracing::error!(error = %e, "lost the board; reconnecting");
@@ -306,7 +277,7 @@ impl Tick for ArduinoApp {
                 NodeStatusT::STATE_FAULT,
                 format!("{}: {e}; reconnecting", self.cfg.port),
             );
-            self.session = None;
+            self.board = None;
             self.next_try = Instant::now() + Duration::from_millis(self.cfg.reconnect_ms);
         }
         if let (Some((levers, channel, stamper)), Some(_)) = (&mut self.truth, &self.sim) {
@@ -331,9 +302,9 @@ impl Tick for ArduinoApp {
     }
 
     fn stop(mut self, _node: &Node) -> anyhow::Result<()> {
-        if let Some(s) = self.session.as_mut() {
+        if let Some(b) = self.board.as_mut() {
             tracing::info!("braking every joint");
-            let _ = s.send(&self.cfg.brake_all());
+            let _ = b.command(self.cfg.brake_all(), Instant::now());
             std::thread::sleep(Duration::from_millis(20));
         }
         Ok(())

@@ -3,7 +3,7 @@
 //! attitude, and the LCM messages. The link itself is `stride-link`'s.
 
 use stride_lcmtypes::stride::{ArduinoJointStateT, HeaderT, ImuT, JointCommandT, JointStateT};
-use stride_link::{JointCommand, JointState, Message, Mode};
+use stride_link::{JointCommand, JointState, Mode};
 use stride_serial::LineSpec;
 
 mod app;
@@ -179,17 +179,15 @@ impl LinkConfig {
     }
 
     /// A command that brakes every joint.
-    pub fn brake_all(&self) -> Message {
-        Message::Command(
-            self.joint
-                .iter()
-                .map(|j| JointCommand {
-                    joint: j.index,
-                    mode: Mode::Brake,
-                    value: 0,
-                })
-                .collect(),
-        )
+    pub fn brake_all(&self) -> Vec<JointCommand> {
+        self.joint
+            .iter()
+            .map(|j| JointCommand {
+                joint: j.index,
+                mode: Mode::Brake,
+                value: 0,
+            })
+            .collect()
     }
 }
 
@@ -198,54 +196,7 @@ pub use stride_limits::Reject;
 
 pub use stride_link::imu;
 
-/// A complementary filter: roll and pitch from the gyro, pulled towards the accelerometer's
-/// gravity direction with time constant `tau`; yaw from the gyro alone.
-#[derive(Debug, Clone)]
-pub struct Attitude {
-    tau: f64,
-    /// Roll, pitch, yaw, rad.
-    pub rpy: [f64; 3],
-    started: bool,
-}
-
-impl Attitude {
-    /// A filter with time constant `tau` seconds.
-    pub fn new(tau: f64) -> Attitude {
-        Attitude {
-            tau,
-            rpy: [0.0; 3],
-            started: false,
-        }
-    }
-
-    /// Takes one sample (accelerometer in g, gyro in rad/s) `dt` seconds after the last.
-    pub fn update(&mut self, accel: [f64; 3], gyro: [f64; 3], dt: f64) {
-        let roll_acc = accel[1].atan2(accel[2]);
-        let pitch_acc = (-accel[0]).atan2((accel[1] * accel[1] + accel[2] * accel[2]).sqrt());
-        if !self.started {
-            // Start from the accelerometer, not from zero.
-            self.rpy = [roll_acc, pitch_acc, 0.0];
-            self.started = true;
-            return;
-        }
-        let a = self.tau / (self.tau + dt.max(0.0));
-        self.rpy[0] = a * (self.rpy[0] + gyro[0] * dt) + (1.0 - a) * roll_acc;
-        self.rpy[1] = a * (self.rpy[1] + gyro[1] * dt) + (1.0 - a) * pitch_acc;
-        self.rpy[2] += gyro[2] * dt;
-    }
-
-    /// The attitude as a quaternion (w, x, y, z), roll-pitch-yaw (x, y, z) convention.
-    pub fn quaternion(&self) -> [f64; 4] {
-        let [r, p, y] = self.rpy.map(|a| a / 2.0);
-        let (cr, sr, cp, sp, cy, sy) = (r.cos(), r.sin(), p.cos(), p.sin(), y.cos(), y.sin());
-        [
-            cr * cp * cy + sr * sp * sy,
-            sr * cp * cy - cr * sp * sy,
-            cr * sp * cy + sr * cp * sy,
-            cr * cp * sy - sr * sp * cy,
-        ]
-    }
-}
+pub use stride_kinematics::attitude::Attitude;
 
 /// The board's raw sample as `stride.imu_t`, with the filter's attitude.
 pub fn imu_msg(

@@ -153,3 +153,160 @@ impl<T: Transport> Session<T> {
         }
     }
 }
+
+/// What a board master watches and when it acts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoardConfig {
+    /// A heartbeat goes out when no command has for this long (the board brakes its joints
+    /// when neither comes within its own watchdog).
+    pub heartbeat: Duration,
+    /// This long without a frame from the board (it streams its state at 100 Hz) is a lost
+    /// link.
+    pub silence: Duration,
+    /// A joint drawing more current than this (A) is braked by the host, once until it draws
+    /// less again.
+    pub current_limit_a: f64,
+    /// The joints (board indices) the host watches.
+    pub joints: Vec<u8>,
+}
+
+impl Default for BoardConfig {
+    /// A 50 ms heartbeat, 500 ms of silence, 6 A.
+    fn default() -> Self {
+        BoardConfig {
+            heartbeat: Duration::from_millis(50),
+            silence: Duration::from_millis(500),
+            current_limit_a: 6.0,
+            joints: (0..8).collect(),
+        }
+    }
+}
+
+/// What the board said, or what the host did, in one turn.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BoardEvent {
+    /// A message from the board (states, IMU samples, faults, refusals).
+    Message(Message),
+    /// The host braked a joint drawing `current_a` over the limit.
+    Braked {
+        /// Board index.
+        joint: u8,
+        /// What it drew, A.
+        current_a: f64,
+    },
+}
+
+/// The master of one board, peer of the Elmo drives' `Master` and the Dynamixel `Chain`: a
+/// session after its handshake, commands out, a heartbeat when no command went out, the
+/// board's silence taken as a lost link, and the host's own current brake.
+pub struct Board<T: Transport> {
+    session: Session<T>,
+    cfg: BoardConfig,
+    last_sent: Instant,
+    last_heard: Instant,
+    braked: [bool; 8],
+}
+
+impl<T: Transport> Board<T> {
+    /// The handshake on `line` (HELLO again every `every`, up to `timeout`), then the master.
+    pub fn connect(
+        line: T,
+        cfg: BoardConfig,
+        timeout: Duration,
+        every: Duration,
+    ) -> Result<(Board<T>, BoardInfo), SessionError> {
+        let mut session = Session::new(line);
+        let info = session.handshake(timeout, every)?;
+        let now = Instant::now();
+        Ok((
+            Board {
+                session,
+                cfg,
+                last_sent: now,
+                last_heard: now,
+                braked: [false; 8],
+            },
+            info,
+        ))
+    }
+
+    /// The board, as its handshake described it.
+    pub fn info(&self) -> Option<&BoardInfo> {
+        self.session.board()
+    }
+
+    /// Frames received, dropped and lost so far.
+    pub fn stats(&self) -> DecoderStats {
+        self.session.stats()
+    }
+
+    /// Sends checked set-points at `now`.
+    pub fn command(
+        &mut self,
+        joints: Vec<stride_link::JointCommand>,
+        now: Instant,
+    ) -> io::Result<()> {
+        self.session.send(&Message::Command(joints))?;
+        self.last_sent = now;
+        Ok(())
+    }
+
+    /// One turn at `now` (`uptime_ms` the heartbeat's count): a heartbeat if no command went
+    /// out for [`BoardConfig::heartbeat`], the board's frames until `until`, the host's brake
+    /// on joints over the current limit. An error for a failed line or a silent board (the
+    /// session is then lost).
+    pub fn pump(
+        &mut self,
+        now: Instant,
+        uptime_ms: u32,
+        until: Instant,
+    ) -> io::Result<Vec<BoardEvent>> {
+        if now.saturating_duration_since(self.last_sent) >= self.cfg.heartbeat {
+            self.session.send(&Message::Heartbeat(uptime_ms))?;
+            self.last_sent = now;
+        }
+        let msgs = self.session.receive(until)?;
+        if !msgs.is_empty() {
+            self.last_heard = now;
+        } else if now.saturating_duration_since(self.last_heard) > self.cfg.silence {
+            return Err(io::Error::new(
+                io::ErrorKind::TimedOut,
+                format!("the board has been silent for {:?}", self.cfg.silence),
+            ));
+        }
+        let mut events = Vec::with_capacity(msgs.len());
+        let mut brake = Vec::new();
+        for m in msgs {
+            let mut braked = Vec::new();
+            if let Message::State { joints, .. } = &m {
+                for &i in &self.cfg.joints {
+                    let Some(st) = joints.get(i as usize) else {
+                        continue;
+                    };
+                    let slot = &mut self.braked[i as usize % 8];
+                    let over = st.current_a() > self.cfg.current_limit_a;
+                    if over && !*slot {
+                        *slot = true;
+                        brake.push(stride_link::JointCommand {
+                            joint: i,
+                            mode: stride_link::Mode::Brake,
+                            value: 0,
+                        });
+                        braked.push(BoardEvent::Braked {
+                            joint: i,
+                            current_a: st.current_a(),
+                        });
+                    } else if !over {
+                        *slot = false;
+                    }
+                }
+            }
+            events.push(BoardEvent::Message(m));
+            events.append(&mut braked);
+        }
+        if !brake.is_empty() {
+            self.session.send(&Message::Command(brake))?;
+        }
+        Ok(events)
+    }
+}

@@ -173,3 +173,87 @@ fn the_board_brakes_when_the_host_stalls_and_on_over_current() {
     let board = board.join().unwrap();
     assert!(board.braked(3));
 }
+
+#[test]
+fn the_board_master_brakes_a_joint_over_the_hosts_current_limit_once_and_takes_silence_as_a_lost_link(
+) {
+    use stride_link_host::{Board, BoardConfig, BoardEvent};
+    let (host, dev) = pty_pair(115_200).unwrap();
+    let levers = DueLevers::default();
+    let stop = Arc::new(AtomicBool::new(false));
+    let fake =
+        FakeDue::new(DueConfig::default()).spawn(Paced::new(dev), levers.clone(), stop.clone());
+    let cfg = BoardConfig {
+        current_limit_a: 3.0,
+        joints: vec![2, 3],
+        ..BoardConfig::default()
+    };
+    let (mut board, info) = Board::connect(
+        host,
+        cfg,
+        Duration::from_secs(2),
+        Duration::from_millis(200),
+    )
+    .unwrap();
+    assert!(info.joints >= 4);
+    let duty = |j| JointCommand {
+        joint: j,
+        mode: Mode::Duty,
+        value: 3000,
+    };
+    board
+        .command(vec![duty(2), duty(3)], Instant::now())
+        .unwrap();
+    // Joint 3 draws 4 A more (over the host's 3 A, under the board's own trip): braked by the
+    // host, once, however many states say so.
+    levers.extra_current(3, 4000.0);
+    let mut braked = Vec::new();
+    let mut states_over = 0;
+    // Until the brake and 300 ms beyond it (at most 10 s: a loaded machine is slow).
+    let give_up = Instant::now() + Duration::from_secs(10);
+    let mut end = give_up;
+    while Instant::now() < end {
+        if braked.len() == 1 && end == give_up {
+            end = Instant::now() + Duration::from_millis(300);
+        }
+        let now = Instant::now();
+        for e in board.pump(now, 0, now + Duration::from_millis(5)).unwrap() {
+            match e {
+                BoardEvent::Braked { joint, current_a } => braked.push((joint, current_a)),
+                BoardEvent::Message(Message::State { joints, .. }) => {
+                    states_over += (joints[3].current_a() > 3.0) as u32;
+                }
+                _ => {}
+            }
+        }
+    }
+    assert_eq!(braked.len(), 1, "{braked:?}");
+    assert_eq!(braked[0].0, 3);
+    assert!(braked[0].1 > 3.0 && states_over >= 1);
+    // The board falls silent: half a second later by the caller's clock, the link is lost.
+    levers.hold(true);
+    // What it wrote before it fell silent is read first.
+    let t = Instant::now();
+    while !board
+        .pump(t, 0, Instant::now() + Duration::from_millis(20))
+        .unwrap()
+        .is_empty()
+    {}
+    let later = t + Duration::from_millis(600);
+    let mut lost = None;
+    for _ in 0..50 {
+        match board.pump(later, 0, Instant::now() + Duration::from_millis(5)) {
+            Ok(_) => continue,
+            Err(e) => {
+                lost = Some(e);
+                break;
+            }
+        }
+    }
+    let e = lost.expect("a silent board is a lost link");
+    assert_eq!(e.kind(), std::io::ErrorKind::TimedOut, "{e}");
+    levers.hold(false);
+    stop.store(true, Ordering::Relaxed);
+    let fake = fake.join().unwrap();
+    assert!(fake.braked(3));
+}

@@ -7,6 +7,7 @@
 //! Every solver returns an error, never NaN, for a target no leg reaches or a singular pose.
 
 pub mod archie;
+pub mod attitude;
 pub mod hexapod;
 pub mod math;
 
