@@ -8,9 +8,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use lcm::now_utime;
-use stride_gait::archie::{ArchieGait, JointPlan, Joints};
-use stride_gait::hexapod::{HexConfig, HexGait, HexRow};
+use stride_gait::archie::{ArchieGait, Joints};
+use stride_gait::hexapod::{HexConfig, HexGait};
 use stride_gait::pattern::Pattern;
+use stride_gait::rows::{Rows, Stream};
 use stride_gait::swing::Place;
 use stride_gait::timeline::Footstep;
 use stride_gait::walker::{StepCounter, Verdict, Walker};
@@ -21,9 +22,9 @@ use stride_lcmtypes::stride::{
     FootstepPlanT, GaitCommandT, ImuT, JointStateT, NodeStatusT, OdometryT, PoseStampedT,
     TrajectoryStatusT,
 };
-use stride_limits::moves::{min_jerk, min_jerk_time};
 use stride_node::{AppConfig, ConfigUse, Node, NodeArgs, Period, Spaced, Stamper, Throttle, Tick};
 
+use crate::group::Group;
 use crate::{
     at_goal, command_msg, counter_msg, feet_after, goal_of, odometry_pelvis, pelvis_at, plan_of,
     request_msg, stand_from, trajectory_msg, Anchor, Asking, BridgeStop, BridgeWatch, GaitConfig,
@@ -73,212 +74,6 @@ impl AppConfig for GaitConfig {
     );
     fn check(&self) -> Result<(), String> {
         GaitConfig::check(self)
-    }
-}
-
-/// A group of joints: its names, where they go, what was measured.
-struct Group {
-    name: String,
-    joints: Vec<String>,
-    trajectory: Option<String>,
-    command: Option<String>,
-    states: Option<(lcm::Subscription, Receiver<JointStateT>)>,
-    /// The last measured position of each joint, and when (walker time, from the state's own
-    /// stamp: a state that waited in a queue is compared with the pattern of its time).
-    measured: BTreeMap<String, (f64, f64)>,
-    /// Each joint's last measured speed (rad/s; NaN: unknown).
-    speeds: BTreeMap<String, f64>,
-    /// The headers of the trajectories and of the set-points: a sequence per channel.
-    trajectory_stamper: Stamper,
-    command_stamper: Stamper,
-    /// The trajectory bridge's status, and what it last said.
-    bridge: Option<(lcm::Subscription, Receiver<TrajectoryStatusT>)>,
-    bridge_watch: BridgeWatch,
-}
-
-impl Group {
-    /// Why the group's bridge stopped its drives, if its status turned to stopped since the
-    /// last call.
-    fn bridge_stopped(&mut self) -> Option<BridgeStop> {
-        let (_, rx) = self.bridge.as_ref()?;
-        let mut why = None;
-        for m in rx.try_iter() {
-            why = self.bridge_watch.on_status(&self.name, &m).or(why);
-        }
-        why
-    }
-
-    /// Takes the joints' states; `now` is walker time, `utime0` its start on the system
-    /// clock (a state's stamp is its time; a stamp of none, or ahead of now, counts as now).
-    fn take_states(&mut self, now: f64, utime0: i64) {
-        if let Some((_, rx)) = &self.states {
-            while let Ok(s) = rx.try_recv() {
-                let stamped = (s.header.utime - utime0) as f64 * 1e-6;
-                let at = if s.header.utime > 0 && stamped <= now {
-                    stamped
-                } else {
-                    now
-                };
-                for (i, (n, p)) in s.names.iter().zip(&s.positions).enumerate() {
-                    // The group's own joints only (a message of other names sizes nothing).
-                    if p.is_finite() && self.joints.contains(n) {
-                        // The speed: the bridge's, else the change since the last position.
-                        let v = match (s.velocities.get(i), self.measured.get(n)) {
-                            (Some(v), _) if v.is_finite() => *v,
-                            (_, Some((q, t))) if at > *t => (p - q) / (at - t),
-                            _ => f64::NAN,
-                        };
-                        self.speeds.insert(n.clone(), v);
-                        self.measured.insert(n.clone(), (*p, at));
-                    }
-                }
-            }
-        }
-    }
-
-    /// The largest distance of the fresh measurements (at most MEASURED_AGE old at `now`)
-    /// from where `want` has the group's joints at each measurement's time, and the joint.
-    fn off(&self, want: impl Fn(f64) -> Option<Vec<f64>>, now: f64) -> Option<(f64, String)> {
-        self.states.as_ref()?;
-        self.joints
-            .iter()
-            .enumerate()
-            .filter_map(|(i, n)| {
-                let (p, at) = self.measured.get(n)?;
-                if now - at >= MEASURED_AGE {
-                    return None;
-                }
-                let q = want(*at)?;
-                Some(((p - q.get(i)?).abs(), n.clone()))
-            })
-            .max_by(|a, b| a.0.total_cmp(&b.0))
-    }
-
-    /// Every joint measured, recently.
-    fn all_measured(&self, now: f64) -> bool {
-        self.states.is_none()
-            || self.joints.iter().all(|n| {
-                self.measured
-                    .get(n)
-                    .is_some_and(|(_, at)| now - at < MEASURED_AGE)
-            })
-    }
-
-    fn position(&self, joint: &str) -> Option<f64> {
-        self.measured.get(joint).map(|m| m.0)
-    }
-
-    /// Every joint at rest (a motion starts from rest: rows sent while the joints still
-    /// decelerate from a stop are refused); a joint whose speed is unknown counts as still.
-    fn still(&self) -> bool {
-        self.states.is_none()
-            || self.joints.iter().all(|n| {
-                self.speeds
-                    .get(n)
-                    .is_none_or(|v| v.is_nan() || v.abs() < STILL_SPEED)
-            })
-    }
-}
-
-/// Slower than this, rad/s, a joint is at rest.
-const STILL_SPEED: f64 = 0.01;
-
-/// A joint's measurement older than this, s, tells nothing of where it is.
-const MEASURED_AGE: f64 = 0.5;
-
-/// Rows of joints in time (walker time, s): positions and velocities per group, in group
-/// order.
-struct Rows {
-    /// When each row plays, walker time.
-    times: Vec<f64>,
-    /// Per group: a row of its joints per time.
-    pos: Vec<Vec<Vec<f64>>>,
-    vel: Vec<Vec<Vec<f64>>>,
-    /// Archie's: the pattern's start (walker time) and the stabiliser's hip correction.
-    of: Option<(f64, [f64; 2])>,
-}
-
-impl Rows {
-    fn of_plan(start: f64, plan: &JointPlan, stab: [f64; 2]) -> Rows {
-        let mut r = Rows {
-            times: Vec::with_capacity(plan.times.len()),
-            pos: vec![Vec::new(), Vec::new()],
-            vel: vec![Vec::new(), Vec::new()],
-            of: Some((start, stab)),
-        };
-        r.extend(plan);
-        r
-    }
-
-    /// Takes the rows of `plan` (those it was made of, and more) not taken yet.
-    fn extend(&mut self, plan: &JointPlan) {
-        let Some((start, stab)) = self.of else {
-            return;
-        };
-        for i in self.times.len()..plan.times.len() {
-            self.times.push(start + plan.times[i]);
-            for (g, rows) in [&plan.left, &plan.right].into_iter().enumerate() {
-                let mut q = rows.positions[i].to_vec();
-                q[1] += stab[0];
-                q[2] += stab[1];
-                self.pos[g].push(q);
-                self.vel[g].push(rows.velocities[i].to_vec());
-            }
-        }
-    }
-
-    fn hexapod(start: f64, rows: &[HexRow]) -> Rows {
-        Rows {
-            times: rows.iter().map(|r| start + r.t).collect(),
-            pos: vec![rows
-                .iter()
-                .map(|r| {
-                    r.servo_deg
-                        .iter()
-                        .flatten()
-                        .map(|d| d.to_radians())
-                        .collect()
-                })
-                .collect()],
-            vel: vec![rows
-                .iter()
-                .map(|r| r.speed.iter().flatten().copied().collect())
-                .collect()],
-            of: None,
-        }
-    }
-
-    fn hold(t: f64, q: &[Vec<f64>]) -> Rows {
-        Rows {
-            times: vec![t],
-            pos: q.iter().map(|g| vec![g.clone()]).collect(),
-            vel: q.iter().map(|g| vec![vec![0.0; g.len()]]).collect(),
-            of: None,
-        }
-    }
-
-    fn end(&self) -> f64 {
-        self.times.last().copied().unwrap_or(0.0)
-    }
-
-    /// Positions and velocities of group `g` at walker time `t` (between rows, linear; held
-    /// past the ends).
-    fn at(&self, g: usize, t: f64) -> (Vec<f64>, Vec<f64>) {
-        let i = self.times.partition_point(|&x| x <= t);
-        if i == 0 {
-            return (self.pos[g][0].clone(), vec![0.0; self.pos[g][0].len()]);
-        }
-        if i >= self.times.len() {
-            let l = self.times.len() - 1;
-            return (self.pos[g][l].clone(), vec![0.0; self.pos[g][l].len()]);
-        }
-        let (a, b) = (i - 1, i);
-        let s = (t - self.times[a]) / (self.times[b] - self.times[a]);
-        let mix = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p + s * (q - p)).collect();
-        (
-            mix(&self.pos[g][a], &self.pos[g][b]),
-            mix(&self.vel[g][a], &self.vel[g][b]),
-        )
     }
 }
 
@@ -384,15 +179,8 @@ pub struct GaitApp {
     last_taken: Option<(i64, Vec<stride_lcmtypes::stride::FootstepT>)>,
     /// Refusals' log lines, thinned (a flood of bad plans does not flood the log).
     refusal_log: Throttle,
-    /// The rows being played, and the index of the last row sent to the trajectory bridges
-    /// (None: nothing of them sent yet: the next chunk replaces).
-    rows: Rows,
-    sent: Option<usize>,
-    /// A pattern just taken: its first chunk goes out at once, not when the lookahead
-    /// reaches it (the drives' bridges have the change as early as they can).
-    fresh: bool,
-    /// Rows not to be sent to trajectory bridges (they stand still already).
-    quiet: bool,
+    /// The rows being played and how far they went to the trajectory bridges.
+    stream: Stream,
     period: Period,
     counter_period: Period,
     /// The period of what does not change (see `GaitConfig::idle_rate_hz`).
@@ -605,10 +393,7 @@ impl GaitApp {
             last_request: None,
             last_taken: None,
             refusal_log: Throttle::new(Duration::from_secs(1)),
-            rows: stand,
-            sent: None,
-            fresh: false,
-            quiet: true,
+            stream: Stream::quiet(stand),
         })
     }
 }
@@ -693,43 +478,13 @@ impl GaitApp {
     /// the stream goes on from the last row sent, or, standing quiet, stays quiet.
     fn adopt(&mut self, plan: Joints, t: f64) {
         let stab = self.stabiliser_now();
-        let stream_end = self.stream_end(t);
         if let Body::Archie { walker, joints, .. } = &mut self.body {
             let rows = Rows::of_plan(walker.pattern().timeline.start, &plan.plan, stab);
-            // Its first rows go to the trajectory bridges at once (see `stream`).
-            self.fresh = true;
-            if stream_end.is_some_and(|e| (rows.times[0] - e).abs() < 1e-6) {
-                // It takes over where the stream sent so far ends: appended there.
-                self.sent = Some(0);
-            } else if rows.times[0] > t {
-                self.sent = None;
-                self.quiet = false;
-            } else {
-                let last_sent = self.sent.map(|i| self.rows.times[i]);
-                self.sent = last_sent.and_then(|ts| {
-                    let i = rows
-                        .times
-                        .partition_point(|&x| x <= ts + 1e-9)
-                        .checked_sub(1)?;
-                    ((rows.times[i] - ts).abs() < 1e-6).then_some(i)
-                });
-                if self.sent.is_none() && !self.quiet {
-                    tracing::warn!("a pattern that starts in the past and does not continue what was sent: not streamed");
-                    self.quiet = true;
-                }
+            if !self.stream.adopt(rows, t) {
+                tracing::warn!("a pattern that starts in the past and does not continue what was sent: not streamed");
             }
-            self.rows = rows;
             **joints = plan;
         }
-    }
-
-    /// The time of the last row sent to the trajectory bridges, while a stream runs at `t`
-    /// (not once its last row has passed: a pattern then starts from now, not back there).
-    fn stream_end(&self, t: f64) -> Option<f64> {
-        if self.quiet {
-            return None;
-        }
-        self.sent.map(|i| self.rows.times[i]).filter(|&e| e >= t)
     }
 
     fn stabiliser_now(&self) -> [f64; 2] {
@@ -807,7 +562,7 @@ impl GaitApp {
             .chain(self.stops.try_iter())
             .collect();
         for c in commands {
-            let stream_end = self.stream_end(t);
+            let stream_end = self.stream.end_sent(t);
             match (c.command, &mut self.body) {
                 (GaitCommandT::COMMAND_STOP, Body::Archie { walker, legs, .. }) => {
                     // The system stop is sent again every second while it holds: said once.
@@ -850,9 +605,9 @@ impl GaitApp {
                 (GaitCommandT::COMMAND_STOP, Body::Hexapod { .. }) => {
                     // Hold where the servos are now.
                     let q: Vec<Vec<f64>> = (0..self.groups.len())
-                        .map(|g| self.rows.at(self.group_index(g), t).0)
+                        .map(|g| self.stream.rows.at(self.group_index(g), t).0)
                         .collect();
-                    self.rows = Rows::hold(t, &q);
+                    self.stream.rows = Rows::hold(t, &q);
                     self.set_status(
                         TrajectoryStatusT::STATE_STOPPED,
                         format!("stopped by command: {}", c.reason),
@@ -865,7 +620,7 @@ impl GaitApp {
                     GaitCommandT::COMMAND_WALK | GaitCommandT::COMMAND_SENSE,
                     Body::Hexapod { gait, at },
                 ) => {
-                    if self.phase != Phase::Ready || t < self.rows.end() {
+                    if self.phase != Phase::Ready || t < self.stream.rows.end() {
                         self.refused(format!(
                             "command {}: the hexapod is not standing ready",
                             c.command
@@ -901,7 +656,7 @@ impl GaitApp {
                     match gait.rows(&configs, &trans, None) {
                         Ok(rows) => {
                             *at = *configs.last().expect("a walk has configurations");
-                            self.rows = Rows::hexapod(t + self.cfg.lookahead, &rows);
+                            self.stream.rows = Rows::hexapod(t + self.cfg.lookahead, &rows);
                             self.status.accepted += 1;
                             self.set_status(TrajectoryStatusT::STATE_MOVING, "");
                         }
@@ -917,7 +672,7 @@ impl GaitApp {
     /// joints to a stop at the end of what it was sent), and the status says why.
     fn fault(&mut self, node: &Node, why: String) {
         tracing::error!("{why}");
-        self.quiet = true;
+        self.stream.silence();
         node.set_health(NodeStatusT::STATE_FAULT, why.clone());
         self.set_status(TrajectoryStatusT::STATE_STOPPED, why.clone());
         self.phase = Phase::Fault(why);
@@ -950,7 +705,7 @@ impl GaitApp {
             tracing::info!("goal ({}, {}) dropped", short(p.goal.x), short(p.goal.y));
             self.goal_note.clear();
         }
-        self.quiet = true;
+        self.stream.silence();
         self.phase = Phase::Halted;
         self.resumed = false;
         self.status.recovery = if auto { HALT_AUTO } else { HALT_RESUME }.into();
@@ -1002,9 +757,8 @@ impl GaitApp {
                 Err(e) => return self.fault(node, format!("no standing pose after a stop: {e}")),
             }
         }
-        self.rows = standing_rows(&self.body, self.groups.len());
-        self.sent = None;
-        self.quiet = true;
+        self.stream
+            .hold(standing_rows(&self.body, self.groups.len()));
         self.halt = None;
         self.resumed = false;
         tracing::info!("standing up from where the joints are once they rest, after: {why}");
@@ -1034,7 +788,12 @@ impl GaitApp {
             return;
         }
         let stand: Vec<Vec<f64>> = (0..self.groups.len())
-            .map(|g| self.rows.at(self.group_index(g), self.rows.times[0]).0)
+            .map(|g| {
+                self.stream
+                    .rows
+                    .at(self.group_index(g), self.stream.rows.times[0])
+                    .0
+            })
             .collect();
         let off = self
             .groups
@@ -1065,20 +824,14 @@ impl GaitApp {
                             .collect()
                     })
                     .collect();
-                let mut rows = Rows {
-                    times: Vec::new(),
-                    pos: Vec::new(),
-                    vel: Vec::new(),
-                    of: None,
-                };
-                let start = t + self.cfg.lookahead;
-                for (a, b) in from.iter().zip(&stand) {
-                    let secs = min_jerk_time(a, b, self.cfg.pose_speed, 1.0, 0.01);
-                    let m = min_jerk(a, b, secs, 0.01);
-                    rows.times = m.times.iter().map(|x| start + x).collect();
-                    rows.pos.push(m.positions);
-                    rows.vel.push(m.velocities);
-                }
+                let mut rows = Rows::move_to(
+                    t + self.cfg.lookahead,
+                    &from,
+                    &stand,
+                    self.cfg.pose_speed,
+                    1.0,
+                    0.01,
+                );
                 // Rows are per pattern group; Archie's hold both legs.
                 if let Body::Archie { .. } = self.body {
                     let mut full = vec![Vec::new(), Vec::new()];
@@ -1091,7 +844,7 @@ impl GaitApp {
                     }
                     for (k, r) in full.iter_mut().enumerate() {
                         if r.is_empty() {
-                            *r = vec![self.rows.pos[k][0].clone(); rows.times.len()];
+                            *r = vec![self.stream.rows.pos[k][0].clone(); rows.times.len()];
                             fullv[k] = vec![vec![0.0; 6]; rows.times.len()];
                         }
                     }
@@ -1104,9 +857,7 @@ impl GaitApp {
                     until - t
                 );
                 node.set_health(NodeStatusT::STATE_RUNNING, "moving into the standing pose");
-                self.rows = rows;
-                self.sent = None;
-                self.quiet = false;
+                self.stream.play(rows);
                 self.phase = Phase::Posing(until);
                 self.say_standing_up();
             }
@@ -1156,12 +907,11 @@ impl GaitApp {
                 Err(e) => return self.fault(node, e),
             }
         }
-        self.rows = standing_rows(&self.body, self.groups.len());
+        let mut stand = standing_rows(&self.body, self.groups.len());
         if let Body::Hexapod { .. } = self.body {
-            self.rows.times = vec![t];
+            stand.times = vec![t];
         }
-        self.sent = None;
-        self.quiet = true;
+        self.stream.hold(stand);
         self.phase = Phase::Ready;
         node.set_running();
         tracing::info!("standing, ready");
@@ -1169,7 +919,7 @@ impl GaitApp {
 
     /// Takes plans and keeps the walk going (Archie).
     fn walk(&mut self, node: &Node, t: f64) {
-        let stream_end = self.stream_end(t);
+        let stream_end = self.stream.end_sent(t);
         let Body::Archie {
             legs,
             walker,
@@ -1352,7 +1102,7 @@ impl GaitApp {
     /// the walk in a stand, from the end of those made.
     fn make_rows(&mut self, t: f64) {
         let need = t + self.cfg.lookahead + self.cfg.chunk + MAKE_AHEAD;
-        let stream_end = self.stream_end(t);
+        let stream_end = self.stream.end_sent(t);
         let Body::Archie {
             legs,
             walker,
@@ -1362,11 +1112,11 @@ impl GaitApp {
         else {
             return;
         };
-        if joints.complete() || self.rows.end() >= need {
+        if joints.complete() || self.stream.rows.end() >= need {
             return;
         }
         match legs.extend(walker.pattern(), joints, need + MAKE_AHEAD) {
-            Ok(()) => self.rows.extend(&joints.plan),
+            Ok(()) => self.stream.rows.extend(&joints.plan),
             Err(e) => {
                 let why = format!("the pattern's later rows are beyond the legs ({e})");
                 walker.halt(
@@ -1404,7 +1154,7 @@ impl GaitApp {
                 None => self.refused("a goal that is not made of finite numbers".into()),
             }
         }
-        let stream_end = self.stream_end(t);
+        let stream_end = self.stream.end_sent(t);
         let ask_again = std::mem::take(&mut self.ask_again);
         let (Body::Archie { walker, .. }, Some(cfg)) = (&self.body, &self.cfg.goal) else {
             return Ok(());
@@ -1479,17 +1229,17 @@ impl GaitApp {
 
     /// A joint further from the pattern than the tolerance stops the walk.
     fn track(&mut self, node: &Node, t: f64) {
-        if self.quiet {
+        if self.stream.is_quiet() {
             return;
         }
-        let (lag, first) = (self.cfg.track_lag, self.rows.times[0]);
+        let (lag, first) = (self.cfg.track_lag, self.stream.rows.times[0]);
         let worst = (0..self.groups.len())
             .filter_map(|g| {
                 let k = self.group_index(g);
                 // Each measurement against the rows of its own time (the bridges' lag
                 // behind).
                 self.groups[g].off(
-                    |at| (at - lag >= first).then(|| self.rows.at(k, at - lag).0),
+                    |at| (at - lag >= first).then(|| self.stream.rows.at(k, at - lag).0),
                     t,
                 )
             })
@@ -1510,19 +1260,9 @@ impl GaitApp {
 
     /// Sends the trajectory bridges the next chunks.
     fn stream(&mut self, node: &Node, t: f64) -> anyhow::Result<()> {
-        if self.quiet || self.rows.times.len() < 2 {
-            return Ok(());
-        }
         let n = ((self.cfg.chunk / ROW_PERIOD).round() as usize).max(2);
-        loop {
-            let last = self.rows.times.len() - 1;
-            let (i0, append) = match self.sent {
-                Some(i) if i >= last => break,
-                Some(i) if self.rows.times[i] >= t + self.cfg.lookahead && !self.fresh => break,
-                Some(i) => (i, true),
-                None => (0, false),
-            };
-            let i1 = (i0 + n).min(last);
+        while let Some((i0, i1, append)) = self.stream.next_chunk(t, self.cfg.lookahead, n) {
+            let rows = &self.stream.rows;
             for g in 0..self.groups.len() {
                 let Some(ch) = self.groups[g].trajectory.clone() else {
                     continue;
@@ -1532,18 +1272,15 @@ impl GaitApp {
                 let m = trajectory_msg(
                     header,
                     &self.groups[g].joints,
-                    &self.rows.times[i0..=i1],
-                    &self.rows.pos[k][i0..=i1],
-                    &self.rows.vel[k][i0..=i1],
-                    self.utime0 + (self.rows.times[i0] * 1e6).round() as i64,
+                    &rows.times[i0..=i1],
+                    &rows.pos[k][i0..=i1],
+                    &rows.vel[k][i0..=i1],
+                    self.utime0 + (rows.times[i0] * 1e6).round() as i64,
                     append,
                 );
                 node.publisher().publish(&ch, &m)?;
             }
-            self.sent = Some(i1);
-            self.fresh = false;
         }
-        self.fresh = false;
         Ok(())
     }
 
@@ -1556,7 +1293,7 @@ impl GaitApp {
             let Some(ch) = self.groups[g].command.clone() else {
                 continue;
             };
-            let (p, v) = self.rows.at(self.group_index(g), t);
+            let (p, v) = self.stream.rows.at(self.group_index(g), t);
             // Holding (the same set-point, at rest): only at the idle rate.
             let now = Instant::now();
             if let Some((last, at)) = &self.last_set[g] {
@@ -1655,7 +1392,7 @@ impl Tick for GaitApp {
         // The hexapod's walk is over once its rows are.
         if matches!(self.body, Body::Hexapod { .. })
             && self.status.state == TrajectoryStatusT::STATE_MOVING
-            && t >= self.rows.end()
+            && t >= self.stream.rows.end()
         {
             self.set_status(TrajectoryStatusT::STATE_IDLE, "walk done");
         }
@@ -1687,7 +1424,7 @@ impl Tick for GaitApp {
         // a command waits at most 20 ms.
         let idle = self.phase == Phase::Ready
             && self.goal.is_none()
-            && t >= self.rows.end()
+            && t >= self.stream.rows.end()
             && match &self.body {
                 Body::Archie { walker, .. } => walker.standing(t),
                 Body::Hexapod { .. } => true,
@@ -1706,7 +1443,7 @@ impl Tick for GaitApp {
         // ends (the Elmo bridge decelerates a chunk that ends in motion; the set-point bridges
         // hold).
         let t = self.time(Instant::now());
-        let stream_end = self.stream_end(t);
+        let stream_end = self.stream.end_sent(t);
         let walking = match &mut self.body {
             Body::Archie { walker, .. } if self.phase == Phase::Ready && !walker.standing(t) => {
                 walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
@@ -1733,7 +1470,7 @@ impl Tick for GaitApp {
             let now = Instant::now();
             let t = self.time(now);
             let standing = match &self.body {
-                Body::Archie { walker, .. } => walker.standing(t) && t >= self.rows.end(),
+                Body::Archie { walker, .. } => walker.standing(t) && t >= self.stream.rows.end(),
                 Body::Hexapod { .. } => true,
             };
             if standing || now >= until || self.phase != Phase::Ready {

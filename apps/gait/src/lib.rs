@@ -3,6 +3,7 @@
 //! into the standing pose; the app itself is in [`app`].
 
 pub mod app;
+mod group;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

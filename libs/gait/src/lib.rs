@@ -21,6 +21,7 @@ pub mod hexapod;
 pub mod lipm;
 pub mod pattern;
 pub mod preview;
+pub mod rows;
 pub mod support;
 pub mod swing;
 pub mod timeline;
