@@ -1,6 +1,5 @@
 //! The walking controller as an app: its command line and its loop.
 
-use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::mpsc::Receiver;
@@ -8,14 +7,12 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use lcm::now_utime;
-use stride_gait::archie::{ArchieGait, Joints};
+use stride_gait::archie::Joints;
+use stride_gait::controller::{switch_time, Controller};
 use stride_gait::hexapod::{HexConfig, HexGait};
-use stride_gait::pattern::Pattern;
 use stride_gait::rows::{Rows, Stream};
 use stride_gait::swing::Place;
-use stride_gait::timeline::Footstep;
-use stride_gait::walker::{StepCounter, Verdict, Walker};
-use stride_gait::GaitError;
+use stride_gait::walker::{Plan, StepCounter, Walker};
 use stride_kinematics::archie::{ArchieConfig, Leg};
 use stride_kinematics::hexapod::Hexapod;
 use stride_lcmtypes::stride::{
@@ -113,13 +110,12 @@ struct Halt {
     auto: bool,
 }
 
+// One body per app, made once: its size does not matter.
+#[allow(clippy::large_enum_variant)]
 enum Body {
     Archie {
-        legs: Box<ArchieGait>,
-        walker: Box<Walker>,
-        /// The joints of the walker's pattern, made as far as it can play (the rest, should
-        /// it be needed, as the stream comes near).
-        joints: Box<Joints>,
+        /// The walker and the legs.
+        ctl: Controller,
         plans: Receiver<FootstepPlanT>,
         plans_sub: lcm::Subscription,
     },
@@ -264,9 +260,12 @@ impl GaitApp {
                 }
                 (
                     Body::Archie {
-                        legs: Box::new(legs),
-                        walker: Box::new(walker),
-                        joints: Box::new(joints),
+                        ctl: Controller {
+                            legs,
+                            walker,
+                            joints,
+                            switch_ahead: cfg.walker.switch_ahead,
+                        },
                         plans: rx,
                         plans_sub: sub,
                     },
@@ -398,25 +397,13 @@ impl GaitApp {
     }
 }
 
-/// When a change decided at `t` is to take over, as the walker's `now` (it switches
-/// `switch_ahead` later): at the end of what was sent to the trajectory bridges while a stream
-/// runs (`stream_end`), so that the new pattern's rows are appended to the rows queued there,
-/// with no clock between them; standing, on a row of the current pattern.
-fn on_grid(walker: &Walker, t: f64, switch_ahead: f64, stream_end: Option<f64>) -> f64 {
-    if let Some(end) = stream_end {
-        return end - switch_ahead + 1e-7;
-    }
-    let start = walker.pattern().timeline.start;
-    let rows = ((t + switch_ahead - start) / ROW_PERIOD - 1e-6)
-        .ceil()
-        .max(0.0);
-    (start + rows * ROW_PERIOD - switch_ahead + 1e-7).max(t)
-}
-
 /// The rows of standing still (Archie's walker's pattern, the hexapod's stance), held.
 fn standing_rows(body: &Body, groups: usize) -> Rows {
     match body {
-        Body::Archie { joints, walker, .. } => {
+        Body::Archie {
+            ctl: Controller { joints, walker, .. },
+            ..
+        } => {
             let mut r = Rows::of_plan(walker.pattern().timeline.start, &joints.plan, [0.0; 2]);
             r.pos.truncate(groups.max(2));
             r
@@ -478,12 +465,16 @@ impl GaitApp {
     /// the stream goes on from the last row sent, or, standing quiet, stays quiet.
     fn adopt(&mut self, plan: Joints, t: f64) {
         let stab = self.stabiliser_now();
-        if let Body::Archie { walker, joints, .. } = &mut self.body {
+        if let Body::Archie {
+            ctl: Controller { walker, joints, .. },
+            ..
+        } = &mut self.body
+        {
             let rows = Rows::of_plan(walker.pattern().timeline.start, &plan.plan, stab);
             if !self.stream.adopt(rows, t) {
                 tracing::warn!("a pattern that starts in the past and does not continue what was sent: not streamed");
             }
-            **joints = plan;
+            *joints = plan;
         }
     }
 
@@ -503,7 +494,11 @@ impl GaitApp {
         let Some(cfg) = &self.cfg.goal else {
             return;
         };
-        let Body::Archie { walker, joints, .. } = &self.body else {
+        let Body::Archie {
+            ctl: Controller { walker, joints, .. },
+            ..
+        } = &self.body
+        else {
             return;
         };
         let start = walker.pattern().timeline.start;
@@ -564,14 +559,25 @@ impl GaitApp {
         for c in commands {
             let stream_end = self.stream.end_sent(t);
             match (c.command, &mut self.body) {
-                (GaitCommandT::COMMAND_STOP, Body::Archie { walker, legs, .. }) => {
+                (
+                    GaitCommandT::COMMAND_STOP,
+                    Body::Archie {
+                        ctl: Controller { walker, legs, .. },
+                        ..
+                    },
+                ) => {
                     // The system stop is sent again every second while it holds: said once.
                     if walker.is_stopped() {
                         tracing::debug!("stop: {}", c.reason);
                         continue;
                     }
                     tracing::info!("stop: {}", c.reason);
-                    walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
+                    walker.stop(switch_time(
+                        walker,
+                        t,
+                        self.cfg.walker.switch_ahead,
+                        stream_end,
+                    ));
                     // The walk ends here: a resume stands until a goal is sent (the robot
                     // never walks off on its own after a stop).
                     if let Some(p) = self.goal.take() {
@@ -594,7 +600,13 @@ impl GaitApp {
                         self.status.recovery = "a resume command (stride.gait_command_t)".into();
                     }
                 }
-                (GaitCommandT::COMMAND_RESUME, Body::Archie { walker, .. }) => {
+                (
+                    GaitCommandT::COMMAND_RESUME,
+                    Body::Archie {
+                        ctl: Controller { walker, .. },
+                        ..
+                    },
+                ) => {
                     walker.resume();
                     self.resumed = true;
                     if self.halt.is_none() {
@@ -694,7 +706,11 @@ impl GaitApp {
         }
         tracing::warn!("{why}: the walk stops");
         self.last_taken = None;
-        if let Body::Archie { walker, .. } = &self.body {
+        if let Body::Archie {
+            ctl: Controller { walker, .. },
+            ..
+        } = &self.body
+        {
             self.restand = Some(stand_from(
                 &walker.pattern().timeline,
                 t,
@@ -723,7 +739,10 @@ impl GaitApp {
             return;
         };
         let stopped = match &self.body {
-            Body::Archie { walker, .. } => walker.is_stopped(),
+            Body::Archie {
+                ctl: Controller { walker, .. },
+                ..
+            } => walker.is_stopped(),
             Body::Hexapod { .. } => false,
         };
         if !(h.auto || self.resumed) || stopped {
@@ -731,9 +750,13 @@ impl GaitApp {
         }
         let why = h.why.clone();
         if let Body::Archie {
-            legs,
-            walker,
-            joints,
+            ctl:
+                Controller {
+                    legs,
+                    walker,
+                    joints,
+                    ..
+                },
             ..
         } = &mut self.body
         {
@@ -751,8 +774,8 @@ impl GaitApp {
                         .map_err(|e| e.to_string())
                 }) {
                 Ok((w, j)) => {
-                    **walker = w;
-                    **joints = j;
+                    *walker = w;
+                    *joints = j;
                 }
                 Err(e) => return self.fault(node, format!("no standing pose after a stop: {e}")),
             }
@@ -882,9 +905,13 @@ impl GaitApp {
     /// Standing in the pose: the walker starts now.
     fn ready(&mut self, node: &Node, t: f64) {
         if let Body::Archie {
-            legs,
-            walker,
-            joints,
+            ctl:
+                Controller {
+                    legs,
+                    walker,
+                    joints,
+                    ..
+                },
             ..
         } = &mut self.body
         {
@@ -901,8 +928,8 @@ impl GaitApp {
                         .map_err(|e| e.to_string())
                 }) {
                 Ok((w, j)) => {
-                    **walker = w;
-                    **joints = j;
+                    *walker = w;
+                    *joints = j;
                 }
                 Err(e) => return self.fault(node, e),
             }
@@ -920,33 +947,11 @@ impl GaitApp {
     /// Takes plans and keeps the walk going (Archie).
     fn walk(&mut self, node: &Node, t: f64) {
         let stream_end = self.stream.end_sent(t);
-        let Body::Archie {
-            legs,
-            walker,
-            plans,
-            ..
-        } = &mut self.body
-        else {
+        let Body::Archie { ctl, plans, .. } = &mut self.body else {
             return;
         };
-        let cache: RefCell<Option<Joints>> = RefCell::new(None);
-        let check = |p: &Pattern, until: f64| -> Result<(), GaitError> {
-            let j = legs.joints_until(p, until)?;
-            *cache.borrow_mut() = Some(j);
-            Ok(())
-        };
-        let reach = |_: &Footstep, _: &[f64; 4]| -> Result<(), String> { Ok(()) };
-        let mut adopt: Option<Joints> = None;
         let mut refusals = Vec::new();
-        let mut taken = 0;
-        let mut late = false;
-        let mut taken_echo = None;
         let mut unreachable = None;
-        // Of the plans come since the last turn, only the newest for the step a plan is
-        // taken for is made into a pattern (the one it would replace the others with): a
-        // flood of copies costs their decoding, not a pattern each.
-        let switch = on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end);
-        let wanted = walker.wanted_echo(switch);
         let mut parsed = Vec::new();
         while let Ok(msg) = plans.try_recv() {
             match msg.status {
@@ -1004,56 +1009,20 @@ impl GaitApp {
                 Err(why) => refusals.push(why),
             }
         }
-        let newest = parsed.iter().rposition(|(p, _)| Some(p.echo) == wanted);
-        let mut last_taken = None;
-        for (i, (plan, msg)) in parsed.iter().enumerate() {
-            if Some(plan.echo) == wanted && Some(i) != newest {
-                self.status.dropped += 1;
-                continue;
-            }
-            match walker.on_plan(
-                plan,
-                on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end),
-                &reach,
-                &check,
-            ) {
-                Verdict::Taken(first) => {
-                    tracing::debug!("plan for step {} taken: step {first} next", plan.echo);
-                    adopt = cache.borrow_mut().take();
-                    taken += 1;
-                    taken_echo = Some(plan.echo);
-                    last_taken = Some((msg.step_number, msg.steps.clone()));
-                }
-                // Refused, a plan changes nothing: the walk goes on.
-                Verdict::Refused(why) => refusals.push(why),
-                Verdict::Late { echo, now } => {
-                    tracing::debug!("plan for step {echo} came during step {now}: dropped");
-                    self.status.dropped += 1;
-                    late |= echo < now;
-                }
-                Verdict::Stopped => {
-                    tracing::debug!("plan ignored: stopped");
-                    self.status.dropped += 1;
-                }
-            }
+        let (offered, msgs): (Vec<Plan>, Vec<FootstepPlanT>) = parsed.into_iter().unzip();
+        let intake = ctl.take(&offered, t, stream_end);
+        if let Some(e) = &intake.stand_beyond {
+            tracing::error!("the walker's stand is beyond the legs ({e}): the rows made go on");
         }
-        let walker_changed = walker.tick(
-            on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end),
-            &check,
-        );
-        if walker_changed {
-            if let Some(j) = cache.borrow_mut().take() {
-                adopt = Some(j);
-            } else {
-                match legs.joints_until(walker.pattern(), f64::INFINITY) {
-                    Ok(j) => adopt = Some(j),
-                    // The walker's own stand, unchecked: the rows already made go on.
-                    Err(e) => tracing::error!(
-                        "the walker's stand is beyond the legs ({e}): the rows made go on"
-                    ),
-                }
-            }
-        }
+        self.status.dropped += intake.dropped as i64;
+        refusals.extend(intake.refusals);
+        let (taken, late, walker_changed, adopt) =
+            (intake.taken, intake.late, intake.changed, intake.adopt);
+        let taken_echo = intake.taken_echo.map(|(echo, _)| echo);
+        let last_taken = intake
+            .taken_echo
+            .map(|(_, i)| (msgs[i].step_number, msgs[i].steps.clone()));
+        let walker = &ctl.walker;
         let standing = walker.standing(t);
         let stopped = walker.is_stopped();
         if let Some(why) = unreachable {
@@ -1072,7 +1041,7 @@ impl GaitApp {
             self.refused(why);
         }
         if taken > 0 {
-            self.status.accepted += taken;
+            self.status.accepted += taken as i64;
             self.status_changed = true;
             // A plan taken is said before its first rows go out, whatever the gap (at most
             // one a tick: one plan is made into a pattern a tick).
@@ -1103,27 +1072,17 @@ impl GaitApp {
     fn make_rows(&mut self, t: f64) {
         let need = t + self.cfg.lookahead + self.cfg.chunk + MAKE_AHEAD;
         let stream_end = self.stream.end_sent(t);
-        let Body::Archie {
-            legs,
-            walker,
-            joints,
-            ..
-        } = &mut self.body
-        else {
+        let Body::Archie { ctl, .. } = &mut self.body else {
             return;
         };
-        if joints.complete() || self.stream.rows.end() >= need {
+        if ctl.joints.complete() || self.stream.rows.end() >= need {
             return;
         }
-        match legs.extend(walker.pattern(), joints, need + MAKE_AHEAD) {
-            Ok(()) => self.stream.rows.extend(&joints.plan),
+        match ctl.extend(need + MAKE_AHEAD) {
+            Ok(()) => self.stream.rows.extend(&ctl.joints.plan),
             Err(e) => {
                 let why = format!("the pattern's later rows are beyond the legs ({e})");
-                walker.halt(
-                    on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end),
-                    &why,
-                );
-                match legs.joints_until(walker.pattern(), f64::INFINITY) {
+                match ctl.halt(t, stream_end, &why) {
                     Ok(j) => self.adopt(j, t),
                     Err(e) => tracing::error!(
                         "the walker's stand is beyond the legs ({e}): the rows made go on"
@@ -1156,7 +1115,14 @@ impl GaitApp {
         }
         let stream_end = self.stream.end_sent(t);
         let ask_again = std::mem::take(&mut self.ask_again);
-        let (Body::Archie { walker, .. }, Some(cfg)) = (&self.body, &self.cfg.goal) else {
+        let (
+            Body::Archie {
+                ctl: Controller { walker, .. },
+                ..
+            },
+            Some(cfg),
+        ) = (&self.body, &self.cfg.goal)
+        else {
             return Ok(());
         };
         let Some(p) = &mut self.goal else {
@@ -1169,7 +1135,7 @@ impl GaitApp {
         let (step, due) = Asking {
             now: walker.counter(t).number,
             at_switch: walker
-                .counter(on_grid(walker, t, switch, stream_end) + switch)
+                .counter(switch_time(walker, t, switch, stream_end) + switch)
                 .number,
             asked: p.step.map(|s| (s, p.sent)),
             taken: self.taken_echo,
@@ -1403,7 +1369,11 @@ impl Tick for GaitApp {
         }
         if self.counter_period.due(now) {
             self.counter_period.next(now);
-            if let Body::Archie { walker, .. } = &self.body {
+            if let Body::Archie {
+                ctl: Controller { walker, .. },
+                ..
+            } = &self.body
+            {
                 let c = walker.counter(t);
                 // Standing, unchanged: only at the idle rate (walking, at its rate, between
                 // steps too: the counter is the gait's pulse).
@@ -1426,7 +1396,10 @@ impl Tick for GaitApp {
             && self.goal.is_none()
             && t >= self.stream.rows.end()
             && match &self.body {
-                Body::Archie { walker, .. } => walker.standing(t),
+                Body::Archie {
+                    ctl: Controller { walker, .. },
+                    ..
+                } => walker.standing(t),
                 Body::Hexapod { .. } => true,
             };
         let next = self.period.next(now);
@@ -1445,8 +1418,16 @@ impl Tick for GaitApp {
         let t = self.time(Instant::now());
         let stream_end = self.stream.end_sent(t);
         let walking = match &mut self.body {
-            Body::Archie { walker, .. } if self.phase == Phase::Ready && !walker.standing(t) => {
-                walker.stop(on_grid(walker, t, self.cfg.walker.switch_ahead, stream_end));
+            Body::Archie {
+                ctl: Controller { walker, .. },
+                ..
+            } if self.phase == Phase::Ready && !walker.standing(t) => {
+                walker.stop(switch_time(
+                    walker,
+                    t,
+                    self.cfg.walker.switch_ahead,
+                    stream_end,
+                ));
                 true
             }
             _ => false,
@@ -1454,7 +1435,11 @@ impl Tick for GaitApp {
         if !walking {
             return Ok(());
         }
-        if let Body::Archie { walker, legs, .. } = &self.body {
+        if let Body::Archie {
+            ctl: Controller { walker, legs, .. },
+            ..
+        } = &self.body
+        {
             match legs.joints_until(walker.pattern(), f64::INFINITY) {
                 Ok(j) => self.adopt(j, t),
                 Err(e) => {
@@ -1470,7 +1455,10 @@ impl Tick for GaitApp {
             let now = Instant::now();
             let t = self.time(now);
             let standing = match &self.body {
-                Body::Archie { walker, .. } => walker.standing(t) && t >= self.stream.rows.end(),
+                Body::Archie {
+                    ctl: Controller { walker, .. },
+                    ..
+                } => walker.standing(t) && t >= self.stream.rows.end(),
                 Body::Hexapod { .. } => true,
             };
             if standing || now >= until || self.phase != Phase::Ready {

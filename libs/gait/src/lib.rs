@@ -17,6 +17,7 @@
 //!   in-place steps, stops).
 
 pub mod archie;
+pub mod controller;
 pub mod hexapod;
 pub mod lipm;
 pub mod pattern;

@@ -460,3 +460,37 @@ fn the_step_counter_never_goes_back_after_a_refused_plan() {
     let good = plan_from(&w, end, last, 3, 0);
     assert_eq!(w.on_plan(&good, end, &ok, &any), Verdict::Taken(last + 1));
 }
+
+#[test]
+fn the_controller_makes_only_the_newest_of_the_plans_for_its_step_into_a_pattern() {
+    use stride_gait::controller::Controller;
+    let w = walker();
+    let legs = common::archie();
+    let joints = legs.joints_until(w.pattern(), f64::INFINITY).unwrap();
+    let mut c = Controller {
+        legs,
+        walker: w,
+        joints,
+        switch_ahead: WalkerConfig::default().switch_ahead,
+    };
+    let t = 0.0;
+    let echo = c.walker.wanted_echo(c.switch_time(t, None)).unwrap();
+    let older = plan_from(&c.walker, t, echo, 4, 0);
+    let newer = plan_from(&c.walker, t, echo, 6, 0);
+    let intake = c.take(&[older, newer], t, None);
+    assert_eq!((intake.taken, intake.dropped), (1, 1), "{intake:?}");
+    assert_eq!(intake.taken_echo, Some((echo, 1)));
+    assert!(intake.refusals.is_empty(), "{:?}", intake.refusals);
+    // The pattern played is the newer plan's (six steps), its joints made.
+    let adopt = intake.adopt.expect("the new pattern's joints");
+    assert!(!adopt.plan.times.is_empty());
+    let last = c
+        .walker
+        .pattern()
+        .timeline
+        .steps
+        .iter()
+        .map(|s| s.footstep.number)
+        .max();
+    assert_eq!(last, Some(echo + 6));
+}
