@@ -205,3 +205,28 @@ proptest::proptest! {
         let _ = stride_lcmtypes::stride::StereoImageT::decode(&framed::<stride_lcmtypes::stride::StereoImageT>(&body));
     }
 }
+
+#[test]
+fn a_table_row_of_the_wrong_width_is_refused_when_encoding() {
+    use stride_lcmtypes::stride::JointTrajectoryT;
+    let mut t = JointTrajectoryT {
+        num_joints: 3,
+        joint_names: vec!["a".into(), "b".into(), "c".into()],
+        num_rows: 2,
+        time_from_start: vec![0.0, 0.01],
+        positions: vec![vec![1.0, 2.0, 3.0], vec![4.0, 5.0, 6.0]],
+        velocities: vec![vec![0.0; 3], vec![0.5; 3]],
+        ..Default::default()
+    };
+    let bytes = t.encode().unwrap();
+    assert_eq!(JointTrajectoryT::decode(&bytes).unwrap(), t);
+    t.velocities[1].pop();
+    assert!(matches!(
+        t.encode(),
+        Err(EncodeError::SizeMismatch {
+            field: "num_joints",
+            declared: 3,
+            actual: 2
+        })
+    ));
+}

@@ -96,8 +96,32 @@ macro_rules! put_num {
     )*};
 }
 
+/// Writes `v` converted by `conv` at `dst`, in groups of four (the compiler then swaps bytes
+/// with vector instructions even in short rows, a joint vector, where it would not vectorize a
+/// plain loop); returns how many it wrote.
+///
+/// # Safety
+/// `dst` must have room for `v.len()` values.
+#[inline(always)]
+unsafe fn fill<T, B>(dst: *mut B, v: &[T], conv: fn(&T) -> B) -> usize {
+    let mut groups = v.chunks_exact(4);
+    let mut i = 0;
+    for g in &mut groups {
+        let w = [conv(&g[0]), conv(&g[1]), conv(&g[2]), conv(&g[3])];
+        // SAFETY: room for v.len() values (the caller's promise); unaligned write.
+        unsafe { dst.add(i).cast::<[B; 4]>().write_unaligned(w) };
+        i += 4;
+    }
+    for x in groups.remainder() {
+        // SAFETY: as above.
+        unsafe { dst.add(i).write_unaligned(conv(x)) };
+        i += 1;
+    }
+    i
+}
+
 macro_rules! put_slice {
-    ($($name:ident: $t:ty => $bits:ty, $conv:expr);* $(;)?) => {$(
+    ($($name:ident, $rows:ident: $t:ty => $bits:ty, $conv:expr);* $(;)?) => {$(
         #[doc = concat!("Appends a slice of big-endian `", stringify!($t), "` (an array member).")]
         #[inline]
         pub fn $name(&mut self, v: &[$t]) {
@@ -108,42 +132,81 @@ macro_rules! put_slice {
             let dst = self.buf.spare_capacity_mut()[..bytes]
                 .as_mut_ptr()
                 .cast::<$bits>();
-            let conv: fn(&$t) -> $bits = $conv;
-            // Groups of four let the compiler swap bytes with vector instructions even in
-            // short rows (a joint vector), where it would not vectorize a plain loop.
-            let mut groups = v.chunks_exact(4);
-            let mut i = 0;
-            for g in &mut groups {
-                let w = [conv(&g[0]), conv(&g[1]), conv(&g[2]), conv(&g[3])];
-                // SAFETY: `dst` has room for v.len() values (reserved above); unaligned write.
-                unsafe { dst.add(i).cast::<[$bits; 4]>().write_unaligned(w) };
-                i += 4;
+            // SAFETY: `dst` has room for v.len() values (reserved above).
+            unsafe { fill(dst, v, $conv) };
+            // SAFETY: `fill` initialised all `bytes` bytes after `start`.
+            unsafe { self.buf.set_len(start + bytes) };
+        }
+
+        #[doc = concat!("Appends the rows of a two-dimensional `", stringify!($t), "` array whose rows must each hold `declared` values (the size member `field`): all checked first, then written in one pass.")]
+        pub fn $rows(
+            &mut self,
+            rows: &[Vec<$t>],
+            declared: i64,
+            field: &'static str,
+        ) -> Result<(), EncodeError> {
+            const N: usize = std::mem::size_of::<$t>();
+            for r in rows {
+                if r.len() as i64 != declared {
+                    return Err(EncodeError::SizeMismatch { field, declared, actual: r.len() });
+                }
             }
-            for x in groups.remainder() {
-                // SAFETY: as above.
-                unsafe { dst.add(i).write_unaligned(conv(x)) };
-                i += 1;
+            let bytes = rows.len() * declared.max(0) as usize * N;
+            self.buf.reserve(bytes);
+            let start = self.buf.len();
+            let dst = self.buf.spare_capacity_mut()[..bytes]
+                .as_mut_ptr()
+                .cast::<$bits>();
+            let mut i = 0;
+            for r in rows {
+                // SAFETY: the rows hold `bytes / N` values in all (checked above), and `dst`
+                // has room for them (reserved above).
+                i += unsafe { fill(dst.add(i), r, $conv) };
             }
             // SAFETY: the loop above initialised all `bytes` bytes after `start`.
             unsafe { self.buf.set_len(start + bytes) };
+            Ok(())
         }
     )*};
 }
 
 impl<'a> Encoder<'a> {
     put_slice!(
-        put_i8_slice: i8 => i8, |x| *x;
-        put_i16_slice: i16 => i16, |x| x.to_be();
-        put_i32_slice: i32 => i32, |x| x.to_be();
-        put_i64_slice: i64 => i64, |x| x.to_be();
-        put_f32_slice: f32 => u32, |x| x.to_bits().to_be();
-        put_f64_slice: f64 => u64, |x| x.to_bits().to_be();
+        put_i8_slice, put_i8_rows: i8 => i8, |x| *x;
+        put_i16_slice, put_i16_rows: i16 => i16, |x| x.to_be();
+        put_i32_slice, put_i32_rows: i32 => i32, |x| x.to_be();
+        put_i64_slice, put_i64_rows: i64 => i64, |x| x.to_be();
+        put_f32_slice, put_f32_rows: f32 => u32, |x| x.to_bits().to_be();
+        put_f64_slice, put_f64_rows: f64 => u64, |x| x.to_bits().to_be();
     );
 
     /// Appends a `byte` array (same as [`Encoder::put_bytes`]).
     #[inline]
     pub fn put_u8_slice(&mut self, v: &[u8]) {
         self.buf.extend_from_slice(v);
+    }
+
+    /// Appends the rows of a two-dimensional `byte` array whose rows must each hold
+    /// `declared` bytes (the size member `field`).
+    pub fn put_u8_rows(
+        &mut self,
+        rows: &[Vec<u8>],
+        declared: i64,
+        field: &'static str,
+    ) -> Result<(), EncodeError> {
+        for r in rows {
+            if r.len() as i64 != declared {
+                return Err(EncodeError::SizeMismatch {
+                    field,
+                    declared,
+                    actual: r.len(),
+                });
+            }
+        }
+        for r in rows {
+            self.buf.extend_from_slice(r);
+        }
+        Ok(())
     }
 
     /// Wraps a buffer; bytes are appended after its current contents.

@@ -296,6 +296,18 @@ impl Ctx<'_> {
                 "{pad}if {expr}.len() as i64 != {field} as i64 {{ return Err(lcm::EncodeError::SizeMismatch {{ field: {n:?}, declared: {field} as i64, actual: {expr}.len() }}); }}"
             );
         }
+        // Rows of a variable length (a table: trajectories' positions): checked and written
+        // in one pass.
+        if let (TypeRef::Primitive(p), [_, Dim::Var(m)]) = (ty, dims) {
+            if let Some(b) = bulk(*p) {
+                let field = format!("self.{}", ident(m));
+                let _ = writeln!(
+                    out,
+                    "{pad}e.put_{b}_rows({by_ref}, {field} as i64, {m:?})?;"
+                );
+                return;
+            }
+        }
         let rest_all_fixed = dims[1..].iter().all(|d| matches!(d, Dim::Const { .. }));
         if let (TypeRef::Primitive(p), true) = (ty, rest_all_fixed) {
             if let Some(b) = bulk(*p) {
