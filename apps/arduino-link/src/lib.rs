@@ -3,7 +3,7 @@
 //! attitude, and the LCM messages. The link itself is `stride-link`'s.
 
 use stride_lcmtypes::stride::{ArduinoJointStateT, HeaderT, ImuT, JointCommandT, JointStateT};
-use stride_link::{JointCommand, JointState, Mode};
+use stride_link::{JointCommand, JointState};
 use stride_serial::LineSpec;
 
 mod app;
@@ -156,16 +156,8 @@ impl LinkConfig {
                         unfit(format!("position {v:.4} rad beyond the wire's ±3.2767 rad"))
                     })?
                 }
-                JointCommandT::MODE_BRAKE => JointCommand {
-                    joint: j.index,
-                    mode: Mode::Brake,
-                    value: 0,
-                },
-                JointCommandT::MODE_DISABLE => JointCommand {
-                    joint: j.index,
-                    mode: Mode::Coast,
-                    value: 0,
-                },
+                JointCommandT::MODE_BRAKE => JointCommand::brake(j.index),
+                JointCommandT::MODE_DISABLE => JointCommand::coast(j.index),
                 _ => {
                     return Err(Reject::Mode {
                         joint: j.name.clone(),
@@ -182,11 +174,7 @@ impl LinkConfig {
     pub fn brake_all(&self) -> Vec<JointCommand> {
         self.joint
             .iter()
-            .map(|j| JointCommand {
-                joint: j.index,
-                mode: Mode::Brake,
-                value: 0,
-            })
+            .map(|j| JointCommand::brake(j.index))
             .collect()
     }
 }

@@ -340,7 +340,10 @@ impl PlannerApp {
 
     /// What it has answered so far.
     pub fn counts(&self) -> Counts {
-        self.counts
+        Counts {
+            restarts: self.worker.restarts(),
+            ..self.counts
+        }
     }
 
     fn publish(&mut self, node: &Node, mut msg: FootstepPlanT) {
@@ -375,7 +378,6 @@ impl PlannerApp {
         if let Some(job) = self.scheduler.start_next() {
             // The scheduler starts a job only when none runs: nothing waits in the thread.
             let _ = self.worker.offer(job)?;
-            self.counts.restarts = self.worker.restarts();
         }
         Ok(())
     }
@@ -419,7 +421,7 @@ impl PlannerApp {
     }
 
     fn report(&self, node: &Node) {
-        let c = self.counts;
+        let c = self.counts();
         let counts = format!(
             "planned {}, superseded {}, refused {}, failed {}, search restarts {}",
             c.planned, c.superseded, c.refused, c.failed, c.restarts
@@ -484,7 +486,7 @@ impl Tick for PlannerApp {
         if let Some(done) = last {
             self.answer(node, done);
         }
-        let c = self.counts;
+        let c = self.counts();
         tracing::info!(
             planned = c.planned,
             superseded = c.superseded,

@@ -27,7 +27,7 @@ use stride_lcmtypes::stride::{
 use stride_limits::angle::wrap;
 
 /// The period of Archie's joint rows, s (every other 5 ms sample of the pattern).
-pub const ROW_PERIOD: f64 = 0.01;
+pub use stride_gait::controller::ROW_PERIOD;
 
 /// The most steps a footstep plan may hold (the planners' own limit): each is checked
 /// against the legs, so a plan's length sizes the gait's work.

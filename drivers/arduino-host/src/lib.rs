@@ -287,11 +287,7 @@ impl<T: Transport> Board<T> {
                     let over = st.current_a() > self.cfg.current_limit_a;
                     if over && !*slot {
                         *slot = true;
-                        brake.push(stride_link::JointCommand {
-                            joint: i,
-                            mode: stride_link::Mode::Brake,
-                            value: 0,
-                        });
+                        brake.push(stride_link::JointCommand::brake(i));
                         braked.push(BoardEvent::Braked {
                             joint: i,
                             current_a: st.current_a(),

@@ -409,6 +409,24 @@ impl JointState {
 }
 
 impl JointCommand {
+    /// The brake on `joint`.
+    pub fn brake(joint: u8) -> JointCommand {
+        JointCommand {
+            joint,
+            mode: Mode::Brake,
+            value: 0,
+        }
+    }
+
+    /// `joint`'s driver disabled, its brake released.
+    pub fn coast(joint: u8) -> JointCommand {
+        JointCommand {
+            joint,
+            mode: Mode::Coast,
+            value: 0,
+        }
+    }
+
     /// A duty set-point: `fraction` of full (-1 to 1) in the wire's 1/10000; None beyond.
     pub fn duty(joint: u8, fraction: f64) -> Option<JointCommand> {
         wire_ten_thousandths(fraction).map(|value| JointCommand {
