@@ -157,6 +157,32 @@ fn two_copies_of_a_disk_a_hair_apart_leave_a_way_round() {
     }
 }
 
+/// Found by the random fields: a disk almost inside a larger one (reaching 5 mm beyond it),
+/// the start 2 mm outside the larger. The circle enclosing the two near-duplicates covered
+/// the start, and the improved planner found no way where one of 5.43 m exists.
+#[test]
+fn nearly_coinciding_disks_are_not_merged_over_the_start() {
+    let circles = [
+        Circle {
+            c: v2(0.8130593728236861, 0.045139065474718174),
+            r: 0.5459395105249633,
+        },
+        Circle {
+            c: v2(0.8843162866070635, 0.1681172439527994),
+            r: 0.6828316571172627,
+        },
+    ];
+    let p = Params::improved();
+    check((0.0, 0.0), (5.0, 0.0), &circles, &p).unwrap();
+    let plan = stride_footstep::archie::plan_exact(v2(0.0, 0.0), v2(5.0, 0.0), &circles, &p);
+    assert_eq!(
+        plan.status,
+        stride_footstep::plan::Status::Ok,
+        "{}",
+        plan.detail
+    );
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(1000))]
 

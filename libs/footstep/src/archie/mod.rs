@@ -342,11 +342,11 @@ fn arc_blocked(circles: &[Circle], i: usize, a: f64, sweep: f64, ccw: bool, grow
     })
 }
 
-/// The circles that matter: near-duplicates merged ([`merge_near`]), then none that lies
-/// inside another (a mapper that reports an obstacle twice, or twice a hair apart, changes
-/// nothing).
-pub fn distinct(circles: &[Circle]) -> Vec<Circle> {
-    let circles = merge_near(circles);
+/// The circles that matter: near-duplicates merged ([`merge_near`], never over a point of
+/// `keep`), then none that lies inside another (a mapper that reports an obstacle twice, or
+/// twice a hair apart, changes nothing).
+pub fn distinct(circles: &[Circle], keep: &[V2]) -> Vec<Circle> {
+    let circles = merge_near(circles, keep);
     // k lies in m (within a micrometre); of two that lie in each other the later one goes.
     let within = |k: usize, m: usize| {
         let (a, b) = (circles[k], circles[m]);
@@ -373,8 +373,9 @@ fn merge_reach(r: f64) -> f64 {
 /// left: the path keeps out of both, and no arc has to pass between two boundaries a hair
 /// apart (two copies of a disk 1 µm to 1 mm apart left no path at all). A pair whose
 /// enclosing circle would reach a third circle that neither reaches is left as it is (the
-/// enclosing circle closed a 0.32 mm gap the disks left open).
-pub fn merge_near(circles: &[Circle]) -> Vec<Circle> {
+/// enclosing circle closed a 0.32 mm gap the disks left open), and so is one whose enclosing
+/// circle would cover a point of `keep` (the start, the goal) that neither covers.
+pub fn merge_near(circles: &[Circle], keep: &[V2]) -> Vec<Circle> {
     let mut out: Vec<Circle> = circles.to_vec();
     loop {
         let mut merged = None;
@@ -407,7 +408,10 @@ pub fn merge_near(circles: &[Circle]) -> Vec<Circle> {
                             && a.c.dist(o.c) >= a.r + o.r
                             && b.c.dist(o.c) >= b.r + o.r
                     });
-                    if closes {
+                    let covers = keep
+                        .iter()
+                        .any(|&q| m.c.dist(q) <= m.r && a.c.dist(q) > a.r && b.c.dist(q) > b.r);
+                    if closes || covers {
                         continue;
                     }
                     merged = Some((i, j, m));
@@ -595,7 +599,7 @@ fn tangent_graph_path(
 /// length as returned (waypoints outside the circles); [`exact_length`] gives the optimum.
 pub fn plan_exact(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> Plan {
     let t0 = Instant::now();
-    let mut circles = distinct(&inflate(obstacles, p.inflation));
+    let mut circles = distinct(&inflate(obstacles, p.inflation), &[start, goal]);
     let mut stats = Stats::default();
     // A start a little inside one margin: that margin narrowed to it for this plan.
     if let Some((i, c)) = narrowed_for(start, &circles, p.start_slack) {
@@ -695,7 +699,7 @@ fn simplify(path: &[V2]) -> Vec<V2> {
 /// The length of the exact shortest path among the inflated circles (arcs included), or
 /// `None` when there is none.
 pub fn exact_length(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> Option<f64> {
-    let circles = distinct(&inflate(obstacles, p.inflation));
+    let circles = distinct(&inflate(obstacles, p.inflation), &[start, goal]);
     tangent_graph_path(start, goal, &circles, TOUCH, &mut Stats::default()).map(|(_, _, d)| d)
 }
 
