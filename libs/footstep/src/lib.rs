@@ -13,6 +13,7 @@
 //! [`svg`] draws a plan. The world they plan in is `stride-world`'s, re-exported here.
 
 pub mod archie;
+mod astar;
 pub mod kaist;
 pub mod lola;
 pub mod plan;

@@ -26,14 +26,14 @@
 //! new foot position) is more than `body_height` above the stance foot.
 
 use std::cell::{Cell, RefCell};
-use std::collections::{BinaryHeap, HashMap};
 use std::time::{Duration, Instant};
 
 use crate::archie::steps::FOOT;
+use crate::astar::{self, trace, End, Reached, Space, Successor};
 use crate::geom::{v2, wrap, V2};
 use crate::grid::{Grid, GridError, GRID_DETOUR};
 use crate::kaist::{self, Action, CostParams, Subset};
-use crate::plan::{anytime, anytime_passes, Cancel, Entry, Foot, PassEnd, Plan, Stats, Status};
+use crate::plan::{anytime, anytime_passes, Cancel, Foot, PassEnd, Plan, Stats, Status};
 use crate::scene::Scene;
 
 /// Which planner.
@@ -224,13 +224,11 @@ impl World {
     }
 }
 
-/// A foothold reached by the search.
+/// A node of the search: the stance foot and the other, where it stood before it swung.
 #[derive(Debug, Clone, Copy)]
 struct Node {
     stance: Foot,
     other: Foot,
-    g: f64,
-    parent: Option<usize>,
 }
 
 impl Node {
@@ -299,11 +297,12 @@ struct Problem<'a> {
     alpha: f64,
     goal: V2,
     field: Option<Vec<f64>>,
-    lattice: bool,
     deadline: Instant,
     /// In the scouting pass, which needs no bound, the heuristic also charges the turn towards
     /// the 2-D way.
     scouting: Cell<bool>,
+    /// Up to how many steps a straight walk takes as one successor (1: none).
+    strides: Cell<usize>,
     /// The 2-D way's direction per cell (NaN: not looked up yet; infinite: none).
     bearings: RefCell<Vec<f64>>,
 }
@@ -320,9 +319,9 @@ impl<'a> Problem<'a> {
             acts,
             goal,
             field,
-            lattice: true,
             deadline: Instant::now(),
             scouting: Cell::new(false),
+            strides: Cell::new(1),
             bearings: RefCell::new(Vec::new()),
         }
     }
@@ -456,8 +455,8 @@ impl<'a> Problem<'a> {
         Some(h)
     }
 
-    /// The successors of `n`.
-    fn successors(&self, n: &Node, stats: &mut Stats) -> Vec<(Foot, f64, Action)> {
+    /// The steps from `n`: each new foot, the step's energy and its action.
+    fn steps(&self, n: &Node, stats: &mut Stats) -> Vec<(Foot, f64, Action)> {
         let s = self.s;
         let p = &s.cost;
         let near = n.centre().dist(self.goal) <= s.full_set_radius;
@@ -519,8 +518,6 @@ impl<'a> Problem<'a> {
             let next = Node {
                 stance: apply(&at.stance, a),
                 other: at.stance,
-                g: 0.0,
-                parent: None,
             };
             stats.generated += 1;
             if next.centre().dist(self.goal) >= at.centre().dist(self.goal) {
@@ -541,9 +538,6 @@ impl<'a> Problem<'a> {
     }
 }
 
-/// Steps of a successor: each new foot and the step's energy.
-type Steps = Vec<(Foot, f64)>;
-
 /// A walk goes on only while each step brings the robot nearer the goal and, outside the full
 /// set's radius, lowers the heuristic by at least this share of its energy: where the
 /// heuristic sees no obstacle in the way.
@@ -552,174 +546,98 @@ const WALK_FOLLOWS: f64 = 0.9;
 /// How far ahead the local-minimum penalty looks, m (the thesis does not say).
 pub const PENALTY_LOOK: f64 = 1.0;
 
-/// How one pass ended.
-enum Pass {
-    /// At the goal: the path's last node.
-    Found(usize),
-    /// Nothing left to expand.
-    Exhausted,
-    /// Stopped by the cap or the budget, with why.
-    Stopped(&'static str),
-}
+impl Space for Problem<'_> {
+    type State = Node;
+    type Key = (i64, i64, i64, bool);
+    type Goal = ();
 
-/// One weighted A* pass (a tree search in thesis mode), pruned by `incumbent`.
-#[allow(clippy::too_many_arguments)]
-fn pass(
-    pr: &Problem,
-    root: Node,
-    weight: f64,
-    cells: (f64, f64),
-    strides: usize,
-    incumbent: f64,
-    stats: &mut Stats,
-    best: &mut (f64, Vec<Foot>),
-) -> (Pass, Vec<Node>) {
-    let (s, lattice, deadline) = (pr.s, pr.lattice, pr.deadline);
-    let mut nodes = vec![root];
-    let mut open = BinaryHeap::new();
-    let mut order = 0u64;
-    let h0 = pr.h(&root);
-    open.push(Entry {
-        f: weight * h0,
-        h: h0,
-        order,
-        node: 0,
-    });
-    let (cell, yaw_cell) = (cells.0, cells.1.to_radians());
-    let key = |f: &Foot| {
+    fn h(&self, n: &Node) -> f64 {
+        Problem::h(self, n)
+    }
+
+    fn key(&self, n: &Node, (cell, yaw_cell): (f64, f64)) -> Self::Key {
+        let (f, yaw_cell) = (&n.stance, yaw_cell.to_radians());
         (
             (f.p.x / cell).round() as i64,
             (f.p.y / cell).round() as i64,
             (wrap(f.yaw) / yaw_cell).round() as i64,
             f.left,
         )
-    };
-    // The cheapest way to each lattice cell so far. A cell reached again more cheaply is
-    // expanded again (reopening), so a pass of weight w stays within w of the optimum although
-    // the heuristic is not consistent.
-    let mut best_g: HashMap<(i64, i64, i64, bool), f64> = HashMap::new();
-    best_g.insert(key(&root.stance), 0.0);
-    while let Some(Entry { node, h: hn, .. }) = open.pop() {
-        let n = nodes[node];
-        if lattice && best_g.get(&key(&n.stance)).is_some_and(|&b| n.g > b) {
-            continue;
+    }
+
+    fn goal(&self, n: &Node, _depth: usize) -> Option<()> {
+        (n.centre().dist(self.goal) < self.s.tolerance).then_some(())
+    }
+
+    fn stop(&self, expansions: u64) -> Option<&'static str> {
+        if expansions >= self.s.max_expansions {
+            return Some("the expansion cap was reached");
         }
-        if n.centre().dist(pr.goal) < s.tolerance {
-            return (Pass::Found(node), nodes);
-        }
-        if hn < best.0 {
-            *best = (hn, trace(&nodes, node));
-        }
-        if stats.expansions >= s.max_expansions {
-            return (Pass::Stopped("the expansion cap was reached"), nodes);
-        }
-        if stats.expansions.is_multiple_of(64) {
-            if s.cancel.is_cancelled() {
-                return (Pass::Stopped("cancelled"), nodes);
+        if expansions.is_multiple_of(64) {
+            if self.s.cancel.is_cancelled() {
+                return Some("cancelled");
             }
-            if Instant::now() > deadline {
-                return (Pass::Stopped("the time budget ran out"), nodes);
+            if Instant::now() > self.deadline {
+                return Some("the time budget ran out");
             }
         }
-        stats.expansions += 1;
-        // Each successor: its steps, and its heuristic when already known.
-        let mut children: Vec<(Steps, Option<f64>)> = Vec::new();
+        None
+    }
+
+    fn successors(&self, n: &Node, hn: f64, stats: &mut Stats) -> Vec<Successor<Node>> {
+        let (s, strides) = (self.s, self.strides.get());
+        let mut out = Vec::new();
         let mut walked = false;
-        for (f, c, a) in pr.successors(&n, stats) {
+        for (f, c, a) in self.steps(n, stats) {
+            let first = Node {
+                stance: f,
+                other: n.stance,
+            };
             // The first straight step (the least cost of transport), also walked on for up to
             // `strides` steps as one successor.
             if strides > 1 && a.subset == Subset::Forward && !walked {
                 walked = true;
-                let first = Node {
-                    stance: f,
-                    other: n.stance,
-                    g: 0.0,
-                    parent: None,
-                };
-                let h_first = pr.h(&first);
+                let h_first = self.h(&first);
                 // Only where the step itself goes down the heuristic (by a third as much as a
                 // walk's steps must: from feet side by side a step moves the centre half as
                 // far, and the heuristic counts its turn and sway), or near the goal, where
                 // the heuristic is one step's floor.
-                let near = n.centre().dist(pr.goal) <= s.full_set_radius;
+                let near = n.centre().dist(self.goal) <= s.full_set_radius;
                 let (more, h_end) = if near || h_first <= hn - WALK_FOLLOWS / 3.0 * c {
-                    pr.walk(&first, h_first, &a, strides, stats)
+                    self.walk(&first, h_first, &a, strides, stats)
                 } else {
                     (Vec::new(), h_first)
                 };
                 if !more.is_empty() {
-                    children.push((std::iter::once((f, c)).chain(more).collect(), Some(h_end)));
+                    // The inner feet of a walk are steps of the plan, never expanded.
+                    let mut steps = vec![(first, c)];
+                    for (f, c) in more {
+                        let other = steps[steps.len() - 1].0.stance;
+                        steps.push((Node { stance: f, other }, c));
+                    }
+                    out.push(Successor {
+                        steps,
+                        h: Some(h_end),
+                    });
                 }
-                children.push((vec![(f, c)], Some(h_first)));
+                out.push(Successor {
+                    steps: vec![(first, c)],
+                    h: Some(h_first),
+                });
             } else {
-                children.push((vec![(f, c)], None));
-            }
-        }
-        for (chain, h_known) in children {
-            // The inner feet of a walk are steps of the plan, never expanded.
-            let mut parent = node;
-            let mut g = n.g;
-            let mut inner = Vec::new();
-            for w in chain.windows(2) {
-                g += w[0].1;
-                inner.push(Node {
-                    stance: w[0].0,
-                    other: inner.last().map_or(n.stance, |m: &Node| m.stance),
-                    g,
-                    parent: None,
+                out.push(Successor {
+                    steps: vec![(first, c)],
+                    h: None,
                 });
             }
-            let (f, c) = *chain.last().expect("a step");
-            let child = Node {
-                stance: f,
-                other: inner.last().map_or(n.stance, |m| m.stance),
-                g: g + c,
-                parent: None,
-            };
-            if lattice && best_g.get(&key(&f)).is_some_and(|&g| g <= child.g) {
-                continue;
-            }
-            let hc = h_known.unwrap_or_else(|| pr.h(&child));
-            if child.g + hc >= incumbent {
-                continue;
-            }
-            // Only a state kept holds its cell: one pruned by the incumbent would shut out
-            // a dearer state there whose heuristic is lower.
-            if lattice {
-                best_g.insert(key(&f), child.g);
-            }
-            for mut m in inner {
-                m.parent = Some(parent);
-                nodes.push(m);
-                parent = nodes.len() - 1;
-            }
-            let child = Node {
-                parent: Some(parent),
-                ..child
-            };
-            order += 1;
-            nodes.push(child);
-            open.push(Entry {
-                f: child.g + weight * hc,
-                h: hc,
-                order,
-                node: nodes.len() - 1,
-            });
         }
+        out
     }
-    (Pass::Exhausted, nodes)
 }
 
 /// The stance feet from the root to `end`.
-fn trace(nodes: &[Node], end: usize) -> Vec<Foot> {
-    let mut feet = Vec::new();
-    let mut at = Some(end);
-    while let Some(i) = at {
-        feet.push(nodes[i].stance);
-        at = nodes[i].parent;
-    }
-    feet.reverse();
-    feet
+fn stances(reached: &[Reached<Node>], end: usize) -> Vec<Foot> {
+    trace(reached, end).iter().map(|n| n.stance).collect()
 }
 
 /// Plans from the robot standing at `start` (feet side by side, the right one to swing first)
@@ -822,16 +740,14 @@ pub fn plan_from(
         alpha,
         goal,
         field,
-        lattice,
         deadline: t1 + s.budget,
         scouting: Cell::new(false),
+        strides: Cell::new(1),
         bearings: RefCell::new(Vec::new()),
     };
     let root = Node {
         stance,
         other: swing,
-        g: 0.0,
-        parent: None,
     };
     let passes = anytime_passes(lattice, s.scout, &s.weights, s.lattice);
     // The best partial plans by the heuristic: the scouting pass's (whose heuristic is not the
@@ -849,25 +765,26 @@ pub fn plan_from(
         } else {
             &mut best_partial
         };
-        let (end, nodes) = pass(&pr, root, w, cells, strides, cap, stats, best);
+        pr.strides.set(strides);
+        let astar::Pass {
+            end,
+            reached,
+            nearest,
+        } = astar::pass(&pr, root, (w, cells), lattice, cap, best.0, stats);
+        if let Some((h, i)) = nearest {
+            *best = (h, stances(&reached, i));
+        }
         match end {
-            Pass::Found(e) => {
-                let feet = trace(&nodes, e);
-                let mut path = Vec::new();
-                let mut at = Some(e);
-                while let Some(i) = at {
-                    path.push(nodes[i].centre());
-                    at = nodes[i].parent;
-                }
-                path.reverse();
-                PassEnd::Found {
-                    plan: (feet, path),
-                    cost: nodes[e].g,
-                    last: false,
-                }
-            }
-            Pass::Exhausted => PassEnd::Exhausted,
-            Pass::Stopped(why) => PassEnd::Stopped(why),
+            End::Found(e, ()) => PassEnd::Found {
+                plan: (
+                    stances(&reached, e),
+                    trace(&reached, e).iter().map(Node::centre).collect(),
+                ),
+                cost: reached[e].g,
+                last: false,
+            },
+            End::Exhausted => PassEnd::Exhausted,
+            End::Stopped(why) => PassEnd::Stopped(why),
         }
     });
     let why = stopped.unwrap_or("no foothold sequence reaches the goal");
@@ -878,8 +795,6 @@ pub fn plan_from(
         [.., other, stance] => pr.h(&Node {
             stance: *stance,
             other: *other,
-            g: 0.0,
-            parent: None,
         }),
         _ => f64::INFINITY,
     };
@@ -989,12 +904,7 @@ pub fn heuristic(
     }
     let field = (s.heuristic == Heuristic::Dijkstra2d).then(|| way_field(world, s, ground, goal));
     let pr = Problem::probe(world, s, goal, field);
-    Some(pr.h(&Node {
-        stance: at,
-        other,
-        g: 0.0,
-        parent: None,
-    }))
+    Some(pr.h(&Node { stance: at, other }))
 }
 
 /// The successors the search would make from the stance foot `stance` with the other foot at
@@ -1007,13 +917,8 @@ pub fn successors(
     other: Foot,
 ) -> Vec<(Foot, f64)> {
     let pr = Problem::probe(world, s, goal, None);
-    let n = Node {
-        stance,
-        other,
-        g: 0.0,
-        parent: None,
-    };
-    pr.successors(&n, &mut Stats::default())
+    let n = Node { stance, other };
+    pr.steps(&n, &mut Stats::default())
         .into_iter()
         .map(|(f, c, _)| (f, c))
         .collect()

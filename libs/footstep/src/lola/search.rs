@@ -1,25 +1,22 @@
 //! The search: the suggestions around the desired step, the problem (heuristic, costs, the
 //! pre-planner's coupling), the weighted A* passes and the anytime loop.
 
-use std::collections::{BinaryHeap, HashMap};
 use std::time::Instant;
 
 use super::preplan::{self, preplan, Reduced, Way};
+use crate::astar::{self, End, Reached, Space, Successor};
 use crate::geom::{v2, wrap, V2};
 use crate::grid::{Grid, GRID_DETOUR};
-use crate::plan::{anytime, anytime_passes, Entry, Foot, PassEnd, Plan, Stats, Status};
+use crate::plan::{anytime, anytime_passes, Foot, PassEnd, Plan, Stats, Status};
 
 use super::settings::{Mode, PrePlanner, Settings};
 use super::world::{Thing, World};
 
-/// A foothold reached by the search.
+/// A node of the search: the stance foot and the other, where it stood before it swung.
 #[derive(Debug, Clone, Copy)]
 struct Node {
     stance: Foot,
     other: Foot,
-    g: f64,
-    depth: usize,
-    parent: Option<usize>,
 }
 
 /// The offsets of the suggestions: (advance, width, turn) steps of (0.10 m, 0.05 m, 0.1 rad).
@@ -112,6 +109,8 @@ struct Problem<'a> {
     way: Option<Way>,
     /// Whether a step onto the goal is tried near it.
     snap: bool,
+    /// When the search's budget runs out.
+    deadline: Instant,
 }
 
 /// The improved pre-planner's distance fields, on one grid.
@@ -190,7 +189,8 @@ impl Problem<'_> {
         }
     }
 
-    fn successors(&self, n: &Node, stats: &mut Stats) -> Vec<(Foot, f64)> {
+    /// The steps from `n`: each new foot and the step's cost.
+    fn steps(&self, n: &Node, stats: &mut Stats) -> Vec<(Foot, f64)> {
         let s = self.s;
         let (lx0, ly0, _) = s.desired;
         let phi0 = self.desired_turn(&n.stance);
@@ -341,17 +341,14 @@ pub fn plan_from(
             stats,
         );
     }
-    let pr = problem(world, s, &stance, &swing, goal, goal_yaw, mode);
+    let mut pr = problem(world, s, &stance, &swing, goal, goal_yaw, mode);
     stats.prepare = t0.elapsed();
     let t1 = Instant::now();
-    let deadline = t1 + s.budget;
+    pr.deadline = t1 + s.budget;
     let lattice = mode == Mode::Improved;
     let root = Node {
         stance,
         other: swing,
-        g: 0.0,
-        depth: 0,
-        parent: None,
     };
     let mut passes = anytime_passes(lattice, s.scout, &s.weights, s.lattice);
     // Towards a horizon, cost alone does not rank plans: the first plan found stands, the
@@ -359,31 +356,39 @@ pub fn plan_from(
     if s.horizon.is_some() {
         passes.truncate(if lattice && s.scout.is_some() { 2 } else { 1 });
     }
-    let mut best = (pr.h(&stance), vec![root], 0usize);
+    let start = Reached {
+        state: root,
+        g: 0.0,
+        depth: 0,
+        parent: None,
+    };
+    let mut best = (pr.h(&stance), vec![start], 0usize);
     let horizon = s.horizon.is_some();
-    let (found, stopped) = anytime(
-        &passes,
-        &mut stats,
-        t1,
-        |w, cells, _, cap, stats| match pass(
-            &pr,
-            root,
-            (w, cells),
-            lattice,
-            cap,
-            deadline,
-            stats,
-            &mut best,
-        ) {
-            Pass::Found(nodes, i, status) => PassEnd::Found {
-                cost: nodes[i].g,
-                plan: (nodes, i, status),
-                last: horizon,
-            },
-            Pass::Exhausted => PassEnd::Exhausted,
-            Pass::Stopped(why) => PassEnd::Stopped(why),
-        },
-    );
+    let (found, stopped) = anytime(&passes, &mut stats, t1, |w, cells, _, cap, stats| {
+        let astar::Pass {
+            end,
+            reached,
+            nearest,
+        } = astar::pass(&pr, root, (w, cells), lattice, cap, best.0, stats);
+        match end {
+            End::Found(i, status) => {
+                return PassEnd::Found {
+                    cost: reached[i].g,
+                    plan: (reached, i, status),
+                    last: horizon,
+                }
+            }
+            End::Exhausted | End::Stopped(_) => {}
+        }
+        // The node nearest the goal of a pass that found none (not the root).
+        if let Some((h, i)) = nearest.filter(|&(_, i)| i != 0) {
+            best = (h, reached, i);
+        }
+        match end {
+            End::Stopped(why) => PassEnd::Stopped(why),
+            _ => PassEnd::Exhausted,
+        }
+    });
     let found = found.map(|f| (f.plan.0, f.plan.1, f.plan.2, f.bound));
     let why = match (stopped, &found) {
         (Some(why), _) => why,
@@ -411,7 +416,7 @@ pub fn plan_from(
     let mut feet = Vec::new();
     let mut at = Some(last);
     while let Some(i) = at {
-        feet.push(nodes[i].stance);
+        feet.push(nodes[i].state.stance);
         at = nodes[i].parent;
     }
     feet.push(swing);
@@ -519,6 +524,7 @@ fn problem<'a>(
         field,
         way,
         snap: mode == Mode::Improved,
+        deadline: Instant::now() + s.budget,
     }
 }
 
@@ -555,14 +561,8 @@ impl<'a> Probe<'a> {
     /// The feet the search steps to from `stance` (the other foot at `other`), each with the
     /// step's cost.
     pub fn successors(&self, stance: Foot, other: Foot) -> Vec<(Foot, f64)> {
-        let n = Node {
-            stance,
-            other,
-            g: 0.0,
-            depth: 0,
-            parent: None,
-        };
-        self.0.successors(&n, &mut Stats::default())
+        let n = Node { stance, other };
+        self.0.steps(&n, &mut Stats::default())
     }
 
     /// Whether a node whose stance foot is `f` is at the goal (within the tolerances).
@@ -573,114 +573,64 @@ impl<'a> Probe<'a> {
     }
 }
 
-/// How one pass ended.
-enum Pass {
-    /// At the goal (or the horizon): the nodes, the last one, and which.
-    Found(Vec<Node>, usize, Status),
-    /// Nothing left to expand below the incumbent.
-    Exhausted,
-    /// The cap or the budget, with why.
-    Stopped(&'static str),
-}
+impl Space for Problem<'_> {
+    type State = Node;
+    type Key = (i64, i64, i64, bool);
+    type Goal = Status;
 
-/// One weighted A* pass (a tree search in thesis mode), pruned by `incumbent`; `best` keeps
-/// the node nearest the goal by the heuristic (and the nodes it belongs to).
-#[allow(clippy::too_many_arguments)]
-fn pass(
-    pr: &Problem,
-    root: Node,
-    (weight, cells): (f64, (f64, f64)),
-    lattice: bool,
-    incumbent: f64,
-    deadline: Instant,
-    stats: &mut Stats,
-    best: &mut (f64, Vec<Node>, usize),
-) -> Pass {
-    let (s, r, goal, goal_yaw) = (pr.s, &pr.s.robot, pr.goal, pr.goal_yaw);
-    let mut nodes = vec![root];
-    let h0 = pr.h(&root.stance);
-    let mut order = 0u64;
-    let mut open = BinaryHeap::from([Entry {
-        f: weight * h0,
-        h: h0,
-        order,
-        node: 0,
-    }]);
-    let key = |f: &Foot| {
-        let m = mid(f, r.width);
+    fn h(&self, n: &Node) -> f64 {
+        Problem::h(self, &n.stance)
+    }
+
+    fn key(&self, n: &Node, cells: (f64, f64)) -> Self::Key {
+        let m = mid(&n.stance, self.s.robot.width);
         (
             (m.x / cells.0).round() as i64,
             (m.y / cells.0).round() as i64,
-            (wrap(f.yaw) / cells.1.to_radians()).round() as i64,
-            f.left,
+            (wrap(n.stance.yaw) / cells.1.to_radians()).round() as i64,
+            n.stance.left,
         )
-    };
-    let mut best_g: HashMap<(i64, i64, i64, bool), f64> = HashMap::new();
-    let mut best_here = (best.0, 0usize);
-    let finish = |nodes: Vec<Node>, best_here: (f64, usize), best: &mut (f64, Vec<Node>, usize)| {
-        if best_here.1 != 0 && best_here.0 < best.0 {
-            *best = (best_here.0, nodes, best_here.1);
-        }
-    };
-    while let Some(Entry { node: i, .. }) = open.pop() {
-        let n = nodes[i];
-        if lattice && best_g.get(&key(&n.stance)).is_some_and(|&b| n.g > b) {
-            continue;
-        }
-        let hn = pr.h(&n.stance);
-        let m = mid(&n.stance, r.width);
-        if m.dist(goal) < s.tolerance.0 && wrap(n.stance.yaw - goal_yaw).abs() < s.tolerance.1 {
-            return Pass::Found(nodes, i, Status::Ok);
-        }
-        if s.horizon.is_some_and(|k| n.depth >= k) {
-            return Pass::Found(nodes, i, Status::Partial);
-        }
-        if hn < best_here.0 {
-            best_here = (hn, i);
-        }
-        if stats.expansions >= s.max_expansions {
-            finish(nodes, best_here, best);
-            return Pass::Stopped("the expansion cap was reached");
-        }
-        if stats.expansions.is_multiple_of(16) && pr.s.cancel.is_cancelled() {
-            finish(nodes, best_here, best);
-            return Pass::Stopped("cancelled");
-        }
-        if stats.expansions.is_multiple_of(16) && Instant::now() > deadline {
-            finish(nodes, best_here, best);
-            return Pass::Stopped("the time budget ran out");
-        }
-        stats.expansions += 1;
-        for (f, c) in pr.successors(&n, stats) {
-            let child = Node {
-                stance: f,
-                other: n.stance,
-                g: n.g + c,
-                depth: n.depth + 1,
-                parent: Some(i),
-            };
-            if lattice && best_g.get(&key(&f)).is_some_and(|&b| b <= child.g) {
-                continue;
-            }
-            let hc = pr.h(&f);
-            if child.g + hc >= incumbent {
-                continue;
-            }
-            // Only a state kept holds its cell: one pruned by the incumbent would shut out
-            // a dearer state there whose heuristic is lower.
-            if lattice {
-                best_g.insert(key(&f), child.g);
-            }
-            nodes.push(child);
-            order += 1;
-            open.push(Entry {
-                f: child.g + weight * hc,
-                h: hc,
-                order,
-                node: nodes.len() - 1,
-            });
-        }
     }
-    finish(nodes, best_here, best);
-    Pass::Exhausted
+
+    /// At the goal (within the tolerances), or at the horizon.
+    fn goal(&self, n: &Node, depth: usize) -> Option<Status> {
+        let (s, f) = (self.s, &n.stance);
+        if mid(f, s.robot.width).dist(self.goal) < s.tolerance.0
+            && wrap(f.yaw - self.goal_yaw).abs() < s.tolerance.1
+        {
+            return Some(Status::Ok);
+        }
+        s.horizon
+            .is_some_and(|k| depth >= k)
+            .then_some(Status::Partial)
+    }
+
+    fn stop(&self, expansions: u64) -> Option<&'static str> {
+        if expansions >= self.s.max_expansions {
+            return Some("the expansion cap was reached");
+        }
+        if expansions.is_multiple_of(16) && self.s.cancel.is_cancelled() {
+            return Some("cancelled");
+        }
+        if expansions.is_multiple_of(16) && Instant::now() > self.deadline {
+            return Some("the time budget ran out");
+        }
+        None
+    }
+
+    fn successors(&self, n: &Node, _h: f64, stats: &mut Stats) -> Vec<Successor<Node>> {
+        self.steps(n, stats)
+            .into_iter()
+            .map(|(f, c)| Successor {
+                steps: vec![(
+                    Node {
+                        stance: f,
+                        other: n.stance,
+                    },
+                    c,
+                )],
+                h: None,
+            })
+            .collect()
+    }
 }
