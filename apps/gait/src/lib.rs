@@ -3,6 +3,7 @@
 //! into the standing pose; the app itself is in [`app`].
 
 pub mod app;
+mod gait;
 mod group;
 
 use std::collections::BTreeMap;

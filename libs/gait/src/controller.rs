@@ -7,8 +7,9 @@ use std::cell::RefCell;
 
 use crate::archie::{ArchieGait, Joints};
 use crate::pattern::Pattern;
+use crate::swing::Place;
 use crate::timeline::Footstep;
-use crate::walker::{Plan, Verdict, Walker};
+use crate::walker::{Plan, Verdict, Walker, WalkerConfig};
 use crate::GaitError;
 
 /// The period of the joints' rows, s.
@@ -116,6 +117,26 @@ impl Controller {
     pub fn extend(&mut self, until: f64) -> Result<(), GaitError> {
         self.legs
             .extend(self.walker.pattern(), &mut self.joints, until)
+    }
+
+    /// A new walker standing with its feet at `left` and `right` from `t` (its step counter
+    /// going on from where it stood: it never goes back), and its joints; an error, and
+    /// nothing changed, when the stand is beyond the legs.
+    pub fn stand(
+        &mut self,
+        cfg: WalkerConfig,
+        t: f64,
+        [left, right]: [Place; 2],
+    ) -> Result<(), String> {
+        let number = self.walker.counter(t).number;
+        let gen = self.walker.generator().clone();
+        let walker = Walker::new(gen, cfg, t, left, right, number).map_err(|e| e.to_string())?;
+        let joints = self
+            .legs
+            .joints_until(walker.pattern(), f64::INFINITY)
+            .map_err(|e| e.to_string())?;
+        (self.walker, self.joints) = (walker, joints);
+        Ok(())
     }
 
     /// The walk ends in a stand at `t` (its later rows are beyond the legs: `why`): the stand's
