@@ -855,6 +855,15 @@ impl Gait {
         let mut unreachable = None;
         let mut parsed = Vec::new();
         while let Ok(msg) = plans.try_recv() {
+            // The planner found no way (beyond its reach, no way round the obstacles).
+            let none = matches!(
+                msg.status,
+                FootstepPlanT::STATUS_NO_PATH
+                    | FootstepPlanT::STATUS_START_IN_COLLISION
+                    | FootstepPlanT::STATUS_GOAL_IN_COLLISION
+                    | FootstepPlanT::STATUS_GOAL_OUTSIDE_MAP
+                    | FootstepPlanT::STATUS_BAD_REQUEST
+            );
             match msg.status {
                 FootstepPlanT::STATUS_OK | FootstepPlanT::STATUS_PARTIAL => {}
                 // A request answered by a newer one's plan: nothing to take.
@@ -862,28 +871,16 @@ impl Gait {
                     self.status.dropped += 1;
                     continue;
                 }
-                // The planner cannot reach the goal from here (beyond its reach, no way
-                // round the obstacles): the walk to it ends, with the planner's reason,
-                // when it answers the last request.
-                FootstepPlanT::STATUS_NO_PATH
-                | FootstepPlanT::STATUS_START_IN_COLLISION
-                | FootstepPlanT::STATUS_GOAL_IN_COLLISION
-                | FootstepPlanT::STATUS_GOAL_OUTSIDE_MAP
-                | FootstepPlanT::STATUS_BAD_REQUEST
-                    if Some(msg.request_id) == self.last_request =>
-                {
+                // The walk to the goal ends, with the planner's reason, when it answers the
+                // last request so.
+                _ if none && Some(msg.request_id) == self.last_request => {
                     self.status.dropped += 1;
                     unreachable = Some(msg.detail.clone());
                     continue;
                 }
                 // An answer to an older request, or a search that ran out of time (the
                 // request goes again): not a plan, not a refusal.
-                FootstepPlanT::STATUS_NO_PATH
-                | FootstepPlanT::STATUS_START_IN_COLLISION
-                | FootstepPlanT::STATUS_GOAL_IN_COLLISION
-                | FootstepPlanT::STATUS_GOAL_OUTSIDE_MAP
-                | FootstepPlanT::STATUS_BAD_REQUEST
-                | FootstepPlanT::STATUS_TIMEOUT => {
+                _ if none || msg.status == FootstepPlanT::STATUS_TIMEOUT => {
                     self.status.dropped += 1;
                     continue;
                 }
