@@ -28,7 +28,7 @@ use stride_fakes::due::{DueConfig, DueLevers, FakeDue};
 use stride_fakes::dynamixel::{ChainLevers, FakeChain, Servo};
 use stride_link::{JointCommand, Message, Mode};
 use stride_link_host::Session;
-use stride_serial::{pty_pair, wire_time, Paced, Transport};
+use stride_serial::{pty_pair, wire_time, Buffered, Paced, Transport};
 use stride_tests::percentile as pct;
 
 /// Counts the bytes that cross a transport, and the time spent inside it (writing, pacing,
@@ -255,8 +255,8 @@ fn dynamixel(model: &str, n: u8, baud: u32, cycles: usize) -> Cycles {
 }
 
 struct LinkFigures {
-    /// COMMAND frames per second the host wrote, and that the board received and acted on
-    /// (counted at its PWM pins).
+    /// COMMAND frames per second the host queued (into its transmit buffer), and that the
+    /// board received and acted on (counted at its PWM pins).
     written_per_s: f64,
     acted_per_s: f64,
     limit_per_s: f64,
@@ -292,7 +292,9 @@ fn link(baud: u32, soak: Duration) -> LinkFigures {
     let levers = DueLevers::default();
     let board =
         FakeDue::new(DueConfig::default()).spawn(Paced::new(dev), levers.clone(), stop.clone());
-    let mut s = Session::new(Paced::new(host));
+    // The host's writes go through a transmit buffer, as on a real port (a page, as Linux's
+    // serial driver has).
+    let mut s = Session::new(Buffered::new(host, 4096));
     s.handshake(Duration::from_secs(3), Duration::from_millis(250))
         .unwrap();
     // Throughput, host to board: COMMAND frames back to back for 2 s, paced by the line, each
@@ -310,6 +312,11 @@ fn link(baud: u32, soak: Duration) -> LinkFigures {
     let window = t.elapsed().as_secs_f64();
     let written_per_s = sent as f64 / window;
     let acted_per_s = (levers.pwm_changes(0) - acted0) as f64 / window;
+    // What is still in the transmit buffer leaves before the round trips are timed.
+    let drained = Instant::now() + wire_time(4096, baud);
+    while Instant::now() < drained {
+        let _ = s.receive(drained).unwrap();
+    }
     let limit_per_s = baud as f64 / 10.0 / frame_len as f64;
     // Round trip: a COMMAND until the STATE that acknowledges it.
     let state_len = 90usize; // measured below
@@ -481,7 +488,7 @@ fn main() {
     println!("| Arduino link, 115 200 baud | figure | line limit | measured | measured / limit | bar | verdict |");
     println!("|---|---|---|---|---|---|---|");
     println!(
-        "| host to board | COMMAND frames (6 joints) per second the board received and acted on (counted at its PWM pins; the host wrote {:.0}/s) | {:.0} | {:.0} | {ratio:.3} | ≥ 0.90 | {} |",
+        "| host to board | COMMAND frames (6 joints) per second the board received and acted on (counted at its PWM pins; the host queued {:.0}/s into its transmit buffer) | {:.0} | {:.0} | {ratio:.3} | ≥ 0.90 | {} |",
         l.written_per_s,
         l.limit_per_s,
         l.acted_per_s,

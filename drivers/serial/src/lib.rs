@@ -1,10 +1,12 @@
 //! Serial transports for the motor buses (Dynamixel TTL/RS-485, the Arduino link): one trait
 //! with deadlines ([`Transport`]), implemented for every `serialport` port (real devices and
-//! pseudo-terminals), and [`Paced`], which holds writes to the time they take on the wire at a
-//! baud rate (so a fake device on a pty answers as slowly as the real one).
+//! pseudo-terminals), [`Paced`], which holds writes to the time they take on the wire at a
+//! baud rate (so a fake device on a pty answers as slowly as the real one), and [`Buffered`],
+//! the same line behind a transmit buffer, as a host's serial driver has.
 //!
 //! Transports know no protocol: they move bytes, and say when a deadline passed.
 
+use std::collections::VecDeque;
 use std::io;
 use std::time::{Duration, Instant};
 
@@ -163,6 +165,98 @@ impl<T: Transport> Transport for Paced<T> {
     }
 }
 
+/// A line paced at its baud rate behind a transmit buffer of `capacity` bytes, as a host's
+/// serial driver has (Linux's holds a page): a write returns once its bytes fit in the buffer
+/// and they leave back to back, so a host that makes its next frame while one is on the line
+/// keeps the line busy. Each write reaches the other end when its last byte would have left
+/// the line, as with [`Paced`]: handed over on the next call at or after that time (a read
+/// waits for it), and all that is left when the transport is dropped.
+#[derive(Debug)]
+pub struct Buffered<T: Transport> {
+    inner: T,
+    capacity: usize,
+    line_free: Instant,
+    /// Writes not yet handed over, with when they have left the line.
+    queue: VecDeque<(Instant, Vec<u8>)>,
+    queued: usize,
+}
+
+impl<T: Transport> Buffered<T> {
+    /// Paces `inner` at its baud rate behind a buffer of `capacity` bytes.
+    pub fn new(inner: T, capacity: usize) -> Buffered<T> {
+        Buffered {
+            inner,
+            capacity,
+            line_free: Instant::now(),
+            queue: VecDeque::new(),
+            queued: 0,
+        }
+    }
+
+    /// Hands over the writes that have left the line by `now`.
+    fn deliver(&mut self, now: Instant) -> io::Result<()> {
+        while self.queue.front().is_some_and(|(due, _)| *due <= now) {
+            let (_, bytes) = self.queue.pop_front().expect("a write");
+            self.queued -= bytes.len();
+            self.inner.write_all(&bytes)?;
+        }
+        Ok(())
+    }
+}
+
+impl<T: Transport> Transport for Buffered<T> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.deliver(Instant::now())?;
+        // Room in the buffer: wait for the oldest writes to leave.
+        while self.queued + bytes.len() > self.capacity {
+            let Some(&(due, _)) = self.queue.front() else {
+                break;
+            };
+            sleep_until(due);
+            self.deliver(Instant::now())?;
+        }
+        let start = self.line_free.max(Instant::now());
+        self.line_free = start + wire_time(bytes.len(), self.inner.baud());
+        self.queue.push_back((self.line_free, bytes.to_vec()));
+        self.queued += bytes.len();
+        Ok(())
+    }
+
+    fn read_until(&mut self, buf: &mut [u8], deadline: Instant) -> io::Result<usize> {
+        loop {
+            self.deliver(Instant::now())?;
+            // Wake to hand over the next write when its time comes.
+            let until = self
+                .queue
+                .front()
+                .map_or(deadline, |&(due, _)| due.min(deadline));
+            let n = self.inner.read_until(buf, until)?;
+            if n > 0 || Instant::now() >= deadline {
+                return Ok(n);
+            }
+        }
+    }
+
+    fn discard_input(&mut self) -> io::Result<()> {
+        self.inner.discard_input()
+    }
+
+    fn baud(&self) -> u32 {
+        self.inner.baud()
+    }
+}
+
+impl<T: Transport> Drop for Buffered<T> {
+    fn drop(&mut self) {
+        while let Some(&(due, _)) = self.queue.front() {
+            sleep_until(due);
+            if self.deliver(due).is_err() {
+                return;
+            }
+        }
+    }
+}
+
 /// Sleeps until `t` (the last stretch spinning, for sub-millisecond accuracy).
 pub fn sleep_until(t: Instant) {
     loop {
@@ -217,6 +311,53 @@ mod tests {
                 .unwrap(),
             0
         );
+    }
+
+    #[test]
+    fn a_buffered_line_sends_back_to_back_and_delivers_at_the_wire_time() {
+        let (host, mut dev) = pty_pair(115_200).unwrap();
+        let mut buf = [0u8; 512];
+        let read_all = |dev: &mut Port<serialport::TTYPort>, want: usize, buf: &mut [u8]| {
+            let mut got = 0;
+            while got < want {
+                let n = dev
+                    .read_until(&mut buf[got..], Instant::now() + Duration::from_secs(2))
+                    .unwrap();
+                assert!(n > 0, "{got} of {want} bytes");
+                got += n;
+            }
+        };
+        // Three frames of 100 bytes into a page-sized buffer: the last byte reaches the other
+        // end no sooner than three frames' wire time after the first write.
+        let mut host = Buffered::new(host, 4096);
+        let t = Instant::now();
+        for k in 0..3u8 {
+            host.write_all(&[k; 100]).unwrap();
+        }
+        // Nothing has left the line yet: a read on the host's side hands the frames over as
+        // their time comes.
+        let mut hbuf = [0u8; 8];
+        while !host.queue.is_empty() {
+            let _ = host.read_until(&mut hbuf, Instant::now() + Duration::from_millis(5));
+        }
+        read_all(&mut dev, 300, &mut buf);
+        assert!(t.elapsed() >= 3 * wire_time(100, 115_200));
+        assert!(buf[..100].iter().all(|&b| b == 0) && buf[200..300].iter().all(|&b| b == 2));
+        // A buffer of one frame: the second write waits for the first to leave. (The pty's
+        // end stays open in `keep` when the transport is dropped.)
+        drop(host);
+        let (host, mut dev) = pty_pair(115_200).unwrap();
+        let keep = host.port.try_clone_native().unwrap();
+        let mut host = Buffered::new(host, 100);
+        let t = Instant::now();
+        host.write_all(&[7; 100]).unwrap();
+        host.write_all(&[8; 100]).unwrap();
+        assert!(t.elapsed() >= wire_time(100, 115_200));
+        // Dropped, it hands over what is left.
+        drop(host);
+        read_all(&mut dev, 200, &mut buf);
+        assert!(buf[100..200].iter().all(|&b| b == 8));
+        drop(keep);
     }
 }
 
