@@ -2,7 +2,8 @@
 """Turns the raw lines of `scripts/bench lcm` into its Markdown table, and keeps the list of
 every full run made with this method.
 
-The method, fixed before the runs it reports (and printed under the table by `method()`):
+The method (printed under the table by `method()`; method 2, with the counted verdict, from run
+3 on):
 
 - Latency figures are the pooled percentiles (p50, p99) of every round trip of every round:
   each ping run prints all its round trips, and the runs of one program are pooled.
@@ -57,7 +58,9 @@ def speed(extra):
 
 def method(resamples=RESAMPLES):
     return (
-        "Method (fixed before these runs, by `scripts/bench-lcm-table.py`): latency figures are "
+        "Method (`scripts/bench-lcm-table.py`; method 1 fixed before runs 1 and 2, method 2 from "
+        "run 3 on, its counted rate settled after run 3 was timed, which changed no verdict): "
+        "latency figures are "
         "the pooled percentiles of every round trip of every round; throughput is all messages of "
         "all rounds over the time they took. Each ratio's 95 % interval resamples the rounds "
         f"({resamples} resamples, fixed seed; a round's C, Rust and control runs kept together). "
