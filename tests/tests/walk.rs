@@ -884,6 +884,10 @@ fn across_a_routed_link_two_zenoh_bridges_carry_the_walk_and_nothing_comes_back(
         Proc::spawn(c)
     };
     let bridges = [bridge("robot", &robot_cfg), bridge("laptop", &laptop_cfg)];
+    // The walk begins once the link carries the robot's reports to the laptop, as a user
+    // waits for the bridges to connect (on a loaded machine the TLS handshake and the
+    // connect retries take seconds, which the walk's deadline is not for).
+    wait_report(&logs[1], 60.0, |_| true);
     let (ok, summary) = split.walk("1.0,0", 90.0);
     // The laptop's logger stops first: what reaches it crossed from the robot's bus, where
     // its logger still listens (stopped the other way round, a step counter the robot sent
