@@ -242,11 +242,18 @@ fn the_gait_walks_the_planners_plan_through_the_elmo_bridge_and_stands() {
             (gait.refused, gait.state),
             (0, TrajectoryStatusT::STATE_IDLE)
         );
+        // The gait's own complaints (a halt, a fault): not the frame's note that a turn of
+        // its loop came late, which a test process without real-time priority beside other
+        // work sees on a loaded machine (its walk is judged above: taken, walked, stood).
+        let complaint = s.status.iter().find(|st| {
+            st.node == "stride-gait"
+                && st.state >= NodeStatusT::STATE_DEGRADED
+                && !st.detail.starts_with("control loop late")
+        });
         assert!(
-            !s.status
-                .iter()
-                .any(|st| st.node == "stride-gait" && st.state >= NodeStatusT::STATE_DEGRADED),
-            "the gait complained"
+            complaint.is_none(),
+            "the gait complained: {:?}",
+            complaint.map(|c| (c.state, &c.detail))
         );
     }
     // The bridge took every chunk in time (its status comes once a second).
