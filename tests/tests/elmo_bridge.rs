@@ -121,8 +121,9 @@ struct Watch {
     states: Arc<Mutex<Vec<(Instant, JointStateT)>>>,
     status: Arc<Mutex<Vec<NodeStatusT>>>,
     traj: Arc<Mutex<Vec<TrajectoryStatusT>>>,
-    /// Frames on the CAN bus carried over LCM (both ways), with when they were seen.
-    frames: Arc<Mutex<Vec<(Instant, bool, CanFrame)>>>,
+    /// Frames on the CAN bus carried over LCM (both ways), each with its own stamp (µs since
+    /// the Unix epoch): when the gateway read it off the wire, or the bridge sent it.
+    frames: Arc<Mutex<Vec<(i64, bool, CanFrame)>>>,
 }
 
 struct Subs(#[allow(dead_code)] Vec<lcm::Subscription>);
@@ -141,16 +142,13 @@ fn watch(lcm: &Lcm) -> (Watch, Subs) {
         w.frames.clone(),
         w.frames.clone(),
     );
-    let frames = |sink: Arc<Mutex<Vec<(Instant, bool, CanFrame)>>>, tx: bool| {
+    let frames = |sink: Arc<Mutex<Vec<(i64, bool, CanFrame)>>>, tx: bool| {
         move |_: &lcm::RecvInfo<'_>, m: CanFrameBatchT| {
-            let now = Instant::now();
             let mut v = sink.lock().unwrap();
-            v.extend(
-                m.frames
-                    .iter()
-                    .filter_map(|f| stride_can_lcm::msg_to_frame(f).ok())
-                    .map(|f| (now, tx, f)),
-            );
+            v.extend(m.frames.iter().filter_map(|f| {
+                let frame = stride_can_lcm::msg_to_frame(f).ok()?;
+                Some((f.utime, tx, frame))
+            }));
         }
     };
     let subs = vec![
@@ -542,54 +540,46 @@ fn a_bridge_killed_mid_motion_leaves_every_axis_stopped_within_the_watchdog() {
     assert!(wait_for(&lcm, 5.0, || w.last_state().positions[3] > 0.1));
     wait_for(&lcm, 0.5, || false);
     bridge.signal(libc::SIGKILL);
-    let killed = Instant::now();
     let (st, _) = bridge.wait(Duration::from_secs(5));
     assert!(!st.success());
-    // Every drive reports the heartbeat it watched stopped (EMCY 0x8130), and quick-stops.
-    let stops = || {
+    // The bridge's last heartbeat (node 127) on its way to the drives, as the bridge stamped
+    // it; every drive then reports the heartbeat it watched stopped (EMCY 0x8130), stamped as
+    // the gateway read it off the wire, and quick-stops.
+    let last_beat = || {
         let f = w.frames.lock().unwrap();
-        let mut nodes: Vec<(u8, Instant)> = f
+        f.iter()
+            .filter(|(_, tx, f)| *tx && f.raw_id() == 0x77f)
+            .map(|(t, _, _)| *t)
+            .max()
+            .unwrap()
+    };
+    let stops = || {
+        let last = last_beat();
+        let f = w.frames.lock().unwrap();
+        let mut nodes: Vec<(u8, i64)> = f
             .iter()
-            .filter(|(t, tx, _)| !tx && *t > killed)
+            .filter(|(t, tx, _)| !tx && *t > last)
             .filter_map(|(t, _, f)| Emcy::decode(f).ok().map(|e| (e, *t)))
             .filter(|(e, _)| e.code == Emcy::HEARTBEAT_ERROR)
-            .map(|(e, t)| (e.node.get(), t))
+            .map(|(e, t)| (e.node.get(), t - last))
             .collect();
         nodes.sort();
         nodes.dedup_by_key(|n| n.0);
         nodes
     };
     assert!(wait_for(&lcm, 3.0, || stops().len() == 6), "{:?}", stops());
-    let worst = stops()
-        .iter()
-        .map(|(_, t)| t.saturating_duration_since(killed))
-        .max()
-        .unwrap();
-    // The bridge's last heartbeat (node 127) on its way to the drives.
-    let last_beat = w
-        .frames
-        .lock()
-        .unwrap()
-        .iter()
-        .filter(|(_, tx, f)| *tx && f.raw_id() == 0x77f)
-        .map(|(t, _, _)| *t)
-        .max()
-        .unwrap();
-    let silence = stops()
-        .iter()
-        .map(|(_, t)| t.saturating_duration_since(last_beat))
-        .max()
-        .unwrap();
+    let silence = Duration::from_micros(stops().iter().map(|s| s.1).max().unwrap() as u64);
     eprintln!(
-        "the slowest drive stopped itself {worst:?} after the kill, {silence:?} after the last \
-         heartbeat (watchdog {watchdog:?})"
+        "the slowest drive stopped itself {silence:?} after the bridge's last heartbeat \
+         (watchdog {watchdog:?})"
     );
     // The drives stopped on their own, as the bridge set them up to: each watches the
     // bridge's heartbeat (node 127) with the configured watchdog (0x1016:1, consumer time in
     // ms). How promptly a drive acts on its consumer time is the fake drive's own test, on
-    // its simulated clock; here the frames cross a pty and a gateway both ways on a shared
-    // machine, so the time seen is only printed, and bounded loosely (a drive that ignored
-    // its watchdog would run its buffered rows for seconds).
+    // modelled time; here the frames cross a gateway and a pty both ways, so the silence the
+    // stamps show (the bridge's send of its last heartbeat to the gateway's read of the
+    // emergency) is bounded loosely: a drive that ignored its watchdog would run its
+    // buffered rows for seconds.
     for n in 1..=6u8 {
         let d = sdo_read(&lcm, n, 0x1016, 1);
         let consumer = u32::from_le_bytes([d[0], d[1], d[2], d[3]]);
@@ -599,7 +589,7 @@ fn a_bridge_killed_mid_motion_leaves_every_axis_stopped_within_the_watchdog() {
             "node {n}: 0x1016:1 = {consumer:#010x}"
         );
     }
-    assert!(worst <= watchdog * 3, "{worst:?}");
+    assert!(silence <= watchdog * 3, "{silence:?}");
     // Every axis is in quick stop and stands still (it moved on buffered rows for 0.54 rad
     // in the finding).
     // (The motor settles behind its command for a few milliseconds after the stop.)
@@ -627,12 +617,12 @@ fn shutdown_decelerates_then_disables_every_drive() {
     let (_rig, _gateway, bridge, lcm, w, _s, _) = chain(7756, &dir);
     lcm.publish(TRAJECTORY, &trajectory(3.0, 0.8)).unwrap();
     assert!(wait_for(&lcm, 5.0, || w.last_state().positions[3] > 0.2));
-    let stopping = Instant::now();
+    let stopping = lcm::now_utime();
     let (st, out) = bridge.interrupt();
     assert!(st.success(), "{out}");
     wait_for(&lcm, 0.5, || false);
     let frames = w.frames.lock().unwrap().clone();
-    let after: Vec<&(Instant, bool, CanFrame)> =
+    let after: Vec<&(i64, bool, CanFrame)> =
         frames.iter().filter(|(t, _, _)| *t >= stopping).collect();
     // First the quick stop (controlword 0x0002) to every drive, then the disable
     // (controlword 0x0000 by SDO), never the other way round.

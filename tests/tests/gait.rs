@@ -6,9 +6,8 @@
 //! bridge, and stands; a late plan is dropped, a bad one refused with its reason.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use lcm::Lcm;
 use stride_canbus::MemBus;
@@ -304,17 +303,17 @@ fn the_gait_walks_the_planners_plan_through_the_elmo_bridge_and_stands() {
 }
 
 /// Pumps the master until it is idle (at most `secs`), at every wake it asks for.
-fn play<B: stride_canbus::CanBus>(m: &mut Master<B>, secs: f64) {
-    let deadline = Instant::now() + Duration::from_secs_f64(secs);
+/// The master's bus is on modelled time: waiting on it steps the drives.
+fn play<B: stride_canbus::CanBus>(m: &mut Master<B>, bus: &MemBus, secs: f64) {
+    let deadline = m.now() + Duration::from_secs_f64(secs);
     loop {
-        m.pump(Instant::now()).unwrap();
-        if m.idle() || Instant::now() > deadline {
+        let now = m.now();
+        m.pump(now).unwrap();
+        if m.idle() || now > deadline {
             break;
         }
-        let wake = m.next_wake().min(Instant::now() + Duration::from_millis(1));
-        if let Some(w) = wake.checked_duration_since(Instant::now()) {
-            std::thread::sleep(w);
-        }
+        let wake = m.next_wake().min(now + Duration::from_millis(1));
+        bus.advance_to(wake.max(now + Duration::from_micros(50)));
     }
     assert!(m.idle(), "the motion did not end within {secs} s");
 }
@@ -355,23 +354,20 @@ fn archies_rows_play_on_six_fake_elmo_drives_within_their_tolerance() {
     let mut mc = bridge.master().unwrap();
     // The whole walk in one trajectory (the gait streams it in chunks).
     mc.max_queue = Duration::from_secs(60);
-    let bus = MemBus::new(1_000_000);
-    let stop = Arc::new(AtomicBool::new(false));
-    let drives: Vec<_> = bridge
-        .joint
-        .iter()
-        .map(|j| {
-            FakeElmo::new(ElmoConfig::new(j.node), Levers::default())
-                .spawn(bus.node(), stop.clone())
-        })
-        .collect();
+    // On modelled time: the drives step as the master waits, whatever the machine runs.
+    let bus = MemBus::modelled(1_000_000);
+    for j in &bridge.joint {
+        let drive = FakeElmo::new(ElmoConfig::new(j.node), Levers::default());
+        bus.attach(drive, Duration::from_millis(1));
+    }
     let mut m = Master::new(bus.node(), bridge.joint.clone(), mc).unwrap();
     m.bring_up().unwrap();
     let names: Vec<String> = rows.left.names.to_vec();
-    let warm = Instant::now() + Duration::from_millis(100);
-    while Instant::now() < warm {
-        m.pump(Instant::now()).unwrap();
-        std::thread::sleep(Duration::from_millis(1));
+    let warm = m.now() + Duration::from_millis(100);
+    while m.now() < warm {
+        let now = m.now();
+        m.pump(now).unwrap();
+        bus.advance_to(now + Duration::from_millis(1));
     }
     // Into the standing pose from the drives' zeros, then the walk.
     let stand = rows.left.positions[0].to_vec();
@@ -388,8 +384,9 @@ fn archies_rows_play_on_six_fake_elmo_drives_within_their_tolerance() {
         velocities: mv.velocities,
         start: Start::Now,
     };
-    m.load(&pose, Instant::now()).unwrap();
-    play(&mut m, 10.0);
+    let now = m.now();
+    m.load(&pose, now).unwrap();
+    play(&mut m, &bus, 10.0);
     let walk = Trajectory {
         joints: names.clone(),
         times: rows.times.clone(),
@@ -397,8 +394,9 @@ fn archies_rows_play_on_six_fake_elmo_drives_within_their_tolerance() {
         velocities: rows.left.velocities.iter().map(|q| q.to_vec()).collect(),
         start: Start::Now,
     };
-    m.load(&walk, Instant::now()).unwrap();
-    play(&mut m, 30.0);
+    let now = m.now();
+    m.load(&walk, now).unwrap();
+    play(&mut m, &bus, 30.0);
     let events = m.take_events();
     assert!(!events.iter().any(|e| e.is_fault()), "{events:?}");
     let c = m.status().counters;
@@ -417,8 +415,4 @@ fn archies_rows_play_on_six_fake_elmo_drives_within_their_tolerance() {
     }
     let shut = m.shutdown();
     assert!(shut.failed.is_empty() && shut.standstill, "{shut:?}");
-    stop.store(true, std::sync::atomic::Ordering::Relaxed);
-    for d in drives {
-        d.join().unwrap();
-    }
 }

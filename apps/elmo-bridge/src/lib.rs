@@ -8,7 +8,7 @@ mod app;
 
 pub use app::{open_bus, Cli, ElmoApp};
 
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use stride_canbus::{BusSpec, CanBus};
 use stride_elmo::{Event, JointConfig, Master, MasterConfig, Start, Trajectory};
@@ -563,7 +563,7 @@ impl<B: CanBus> Bridge<B> {
     /// The bus or a drive is down for `why`: recovery runs, first after its delay from now
     /// (after the stop, which may have waited on silent drives).
     fn go_down(&mut self, why: String) {
-        self.recovery.failed(Instant::now());
+        self.recovery.failed(self.master.now());
         self.down = Some(why);
         self.update();
     }
@@ -584,7 +584,7 @@ impl<B: CanBus> Bridge<B> {
                     self.update();
                 }
                 Err(e) => {
-                    self.recovery.failed(Instant::now());
+                    self.recovery.failed(self.master.now());
                     notes.push(Note::Warn(format!("drives still down: {e}")));
                     self.update();
                     return notes;
@@ -667,12 +667,8 @@ impl<B: CanBus> Bridge<B> {
         let s = self.master.status();
         let c = s.counters;
         let (state, reason, recovery, _) = self.condition();
-        let wall = |t: Instant| {
-            let ahead = t.saturating_duration_since(Instant::now());
-            (SystemTime::now() + ahead)
-                .duration_since(UNIX_EPOCH)
-                .map_or(0, |d| d.as_micros() as i64)
-        };
+        let (now, utime) = (self.master.now(), self.master.utime());
+        let wall = |t: Instant| utime + t.saturating_duration_since(now).as_micros() as i64;
         TrajectoryStatusT {
             header,
             node: node.to_owned(),
@@ -788,13 +784,14 @@ mod tests {
 
     #[test]
     fn a_bridge_whose_drives_are_down_sleeps_until_its_next_attempt() {
-        use std::sync::atomic::{AtomicBool, Ordering};
-        use std::sync::Arc;
+        use std::sync::atomic::Ordering;
         use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
-        let bus = stride_canbus::MemBus::new(1_000_000);
-        let stop = Arc::new(AtomicBool::new(false));
-        let drive =
-            FakeElmo::new(ElmoConfig::new(1), Levers::default()).spawn(bus.node(), stop.clone());
+        let bus = stride_canbus::MemBus::modelled(1_000_000);
+        let levers = Levers::default();
+        bus.attach(
+            FakeElmo::new(ElmoConfig::new(1), levers.clone()),
+            Duration::from_millis(1),
+        );
         let cfg: BridgeConfig = toml::from_str(
             &std::fs::read_to_string(concat!(
                 env!("CARGO_MANIFEST_DIR"),
@@ -808,20 +805,19 @@ mod tests {
         master.bring_up().unwrap();
         let mut b = Bridge::new(master, 500);
         // The drive dies: its heartbeat stops, the bridge goes down and waits to recover.
-        stop.store(true, Ordering::Relaxed);
-        let _ = drive.join();
-        let t0 = Instant::now();
+        levers.silent.store(true, Ordering::Relaxed);
+        let t0 = bus.now();
         while b.health().state != NodeStatusT::STATE_FAULT {
             assert!(
-                t0.elapsed() < Duration::from_secs(3),
+                bus.now() - t0 < Duration::from_secs(3),
                 "no fault: {:?}",
                 b.health()
             );
-            b.tick(Instant::now());
-            std::thread::sleep(Duration::from_millis(1));
+            b.tick(bus.now());
+            bus.advance_to(bus.now() + Duration::from_millis(1));
         }
         // Its next wake is the attempt, not a SYNC that is never sent while it is down.
-        let now = Instant::now();
+        let now = bus.now();
         assert!(
             b.next_wake() > now + Duration::from_millis(400),
             "{:?} {:?}",
@@ -835,13 +831,12 @@ mod tests {
     /// "stride resume, then a valid trajectory". Both say the same thing now, from one place.
     #[test]
     fn a_bridges_heartbeat_and_trajectory_status_say_the_same_of_how_it_comes_back() {
-        use std::sync::atomic::AtomicBool;
-        use std::sync::Arc;
         use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
-        let bus = stride_canbus::MemBus::new(1_000_000);
-        let stop = Arc::new(AtomicBool::new(false));
-        let _drive =
-            FakeElmo::new(ElmoConfig::new(1), Levers::default()).spawn(bus.node(), stop.clone());
+        let bus = stride_canbus::MemBus::modelled(1_000_000);
+        bus.attach(
+            FakeElmo::new(ElmoConfig::new(1), Levers::default()),
+            Duration::from_millis(1),
+        );
         let cfg: BridgeConfig = toml::from_str(
             &std::fs::read_to_string(concat!(
                 env!("CARGO_MANIFEST_DIR"),
@@ -873,12 +868,11 @@ mod tests {
         );
         assert_eq!(health.detail, format!("{reason}; {recovery}"));
         b.resume();
-        b.tick(Instant::now());
+        b.tick(bus.now());
         let (state, reason, recovery, health) = said(&b);
         assert_eq!(state, TrajectoryStatusT::STATE_STOPPED);
         assert_eq!(recovery, REARM);
         assert_eq!(health.detail, format!("{reason}; {recovery}"));
-        stop.store(true, std::sync::atomic::Ordering::Relaxed);
     }
 
     #[test]

@@ -43,10 +43,27 @@ pub trait CanBus {
     fn recv(&mut self, deadline: Instant) -> Result<CanFrame, BusError>;
     /// The next frame if one is already there.
     fn try_recv(&mut self) -> Result<Option<CanFrame>, BusError> {
-        match self.recv(Instant::now()) {
+        match self.recv(self.now()) {
             Ok(f) => Ok(Some(f)),
             Err(BusError::Timeout) => Ok(None),
             Err(e) => Err(e),
+        }
+    }
+    /// The bus's time: the monotonic clock on a real bus, the modelled clock on a
+    /// [`MemBus::modelled`] bus. Drivers read time here, so that the same code runs on either.
+    fn now(&self) -> Instant {
+        Instant::now()
+    }
+    /// The wall clock at [`CanBus::now`], µs since the Unix epoch.
+    fn utime(&self) -> i64 {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_micros() as i64)
+    }
+    /// Waits until `t` of the bus's time (on a modelled bus, the devices on it run until then).
+    fn wait_until(&mut self, t: Instant) {
+        if let Some(d) = t.checked_duration_since(Instant::now()) {
+            std::thread::sleep(d);
         }
     }
 }
@@ -57,6 +74,18 @@ impl<T: CanBus + ?Sized> CanBus for Box<T> {
     }
     fn recv(&mut self, deadline: Instant) -> Result<CanFrame, BusError> {
         (**self).recv(deadline)
+    }
+    fn try_recv(&mut self) -> Result<Option<CanFrame>, BusError> {
+        (**self).try_recv()
+    }
+    fn now(&self) -> Instant {
+        (**self).now()
+    }
+    fn utime(&self) -> i64 {
+        (**self).utime()
+    }
+    fn wait_until(&mut self, t: Instant) {
+        (**self).wait_until(t)
     }
 }
 
@@ -97,13 +126,47 @@ struct Inner {
     busy: Duration,
     started: Instant,
     bus_off: bool,
+    /// The modelled time, on a [`MemBus::modelled`] bus.
+    modelled: Option<Instant>,
+    /// The wall clock at `started`, µs since the Unix epoch.
+    utime0: i64,
+}
+
+impl Inner {
+    fn now(&self) -> Instant {
+        self.modelled.unwrap_or_else(Instant::now)
+    }
+}
+
+/// A device a modelled bus steps as its time moves: a fake drive, say.
+pub trait Device: Send {
+    /// Takes in what has arrived on `bus` and does what is due by `now`.
+    fn step(&mut self, now: Instant, bus: &mut MemNode);
+}
+
+/// A device on a modelled bus, shared with whoever attached it.
+pub type Attached<D> = Arc<Mutex<D>>;
+
+struct Attachment {
+    node: MemNode,
+    device: Arc<Mutex<dyn Device>>,
+    tick: Duration,
+    next: Instant,
 }
 
 /// An in-memory CAN bus at a chosen bit rate. Frames are seen by every other node once their
 /// time on the wire (their exact length, stuff bits included) has passed, one frame at a time.
+///
+/// Made with [`MemBus::new`], the bus runs on the monotonic clock and its nodes wait as on a
+/// real bus (threads on both sides). Made with [`MemBus::modelled`], it runs on a clock that
+/// moves only when one thread waits on it ([`CanBus::recv`], [`CanBus::wait_until`],
+/// [`MemBus::advance_to`]): time then jumps from event to event (a frame's arrival, a
+/// device's step), stepping the [`Device`]s attached to it on the way, so that a test of a
+/// master and its devices does not depend on how the machine schedules threads.
 #[derive(Clone)]
 pub struct MemBus {
     inner: Arc<(Mutex<Inner>, Condvar)>,
+    devices: Arc<Mutex<Vec<Attachment>>>,
 }
 
 impl std::fmt::Debug for MemBus {
@@ -118,9 +181,22 @@ impl std::fmt::Debug for MemBus {
 pub const TX_QUEUE: usize = 64;
 
 impl MemBus {
-    /// A bus at `bits_per_second` (1 000 000 for a typical robot bus).
+    /// A bus at `bits_per_second` (1 000 000 for a typical robot bus) on the monotonic clock.
     pub fn new(bits_per_second: u32) -> MemBus {
+        MemBus::make(bits_per_second, false)
+    }
+
+    /// A bus at `bits_per_second` on a modelled clock, which starts now and moves only when a
+    /// node waits; one thread uses it (the test's), the devices attached run on it.
+    pub fn modelled(bits_per_second: u32) -> MemBus {
+        MemBus::make(bits_per_second, true)
+    }
+
+    fn make(bits_per_second: u32, modelled: bool) -> MemBus {
         let now = Instant::now();
+        let utime0 = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_micros() as i64);
         MemBus {
             inner: Arc::new((
                 Mutex::new(Inner {
@@ -132,9 +208,12 @@ impl MemBus {
                     busy: Duration::ZERO,
                     started: now,
                     bus_off: false,
+                    modelled: modelled.then_some(now),
+                    utime0,
                 }),
                 Condvar::new(),
             )),
+            devices: Arc::default(),
         }
     }
 
@@ -159,7 +238,7 @@ impl MemBus {
         BusStats {
             frames: g.frames,
             busy: g.busy,
-            elapsed: g.started.elapsed(),
+            elapsed: g.now() - g.started,
         }
     }
 
@@ -167,6 +246,103 @@ impl MemBus {
     pub fn set_bus_off(&self, off: bool) {
         self.lock().bus_off = off;
         self.inner.1.notify_all();
+    }
+
+    /// The bus's time (see [`CanBus::now`]).
+    pub fn now(&self) -> Instant {
+        self.lock().now()
+    }
+
+    /// The wall clock at [`MemBus::now`], µs since the Unix epoch: on a modelled bus, the wall
+    /// clock when it was made plus the modelled time since.
+    pub fn utime(&self) -> i64 {
+        let g = self.lock();
+        match g.modelled {
+            Some(t) => g.utime0 + (t - g.started).as_micros() as i64,
+            None => std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_micros() as i64),
+        }
+    }
+
+    /// True on a [`MemBus::modelled`] bus.
+    pub fn is_modelled(&self) -> bool {
+        self.lock().modelled.is_some()
+    }
+
+    /// Attaches `device` on a node of its own, stepped every `tick` of the modelled time and
+    /// whenever a frame reaches it; the handle shares it with the caller. Only a modelled bus
+    /// steps its devices (on a bus on the monotonic clock, give a device a thread of its own).
+    pub fn attach<D: Device + 'static>(&self, device: D, tick: Duration) -> Attached<D> {
+        let shared = Arc::new(Mutex::new(device));
+        let node = self.node();
+        let next = self.now();
+        self.devices
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push(Attachment {
+                node,
+                device: shared.clone(),
+                tick: tick.max(Duration::from_micros(1)),
+                next,
+            });
+        shared
+    }
+
+    /// Moves the modelled time to `t`, stepping the devices on the way (on a bus on the
+    /// monotonic clock, sleeps until `t`).
+    pub fn advance_to(&self, t: Instant) {
+        if !self.is_modelled() {
+            if let Some(d) = t.checked_duration_since(Instant::now()) {
+                std::thread::sleep(d);
+            }
+            return;
+        }
+        while self.now() < t {
+            if !self.step_to(t) {
+                return;
+            }
+        }
+    }
+
+    /// One event of the modelled time: the devices due now are stepped, then the time moves
+    /// to the next event (a frame's arrival, a device's step) or `limit`, whichever is first.
+    /// False when it cannot move (a device waiting on the bus from its own step).
+    fn step_to(&self, limit: Instant) -> bool {
+        let Ok(mut devices) = self.devices.try_lock() else {
+            return false;
+        };
+        let now = self.now();
+        for a in devices.iter_mut() {
+            let arrived = {
+                let g = self.lock();
+                g.inboxes[a.node.index].front().is_some_and(|d| d.at <= now)
+            };
+            if a.next <= now || arrived {
+                a.device
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .step(now, &mut a.node);
+                while a.next <= now {
+                    a.next += a.tick;
+                }
+            }
+        }
+        let mut g = self.lock();
+        let arrival = g
+            .inboxes
+            .iter()
+            .filter_map(|q| q.iter().map(|d| d.at).find(|at| *at > now))
+            .min();
+        let next = devices
+            .iter()
+            .map(|a| a.next)
+            .chain(arrival)
+            .fold(limit, Instant::min);
+        if next > now {
+            g.modelled = Some(next);
+        }
+        true
     }
 }
 
@@ -177,6 +353,26 @@ pub struct MemNode {
     index: usize,
 }
 
+impl MemNode {
+    /// The bus this node is on.
+    pub fn bus(&self) -> &MemBus {
+        &self.bus
+    }
+
+    /// The next frame that has arrived by the bus's time, with when it arrived (the end of its
+    /// time on the wire): a sniffer's timestamp, as a CAN interface stamps what it receives.
+    pub fn try_recv_stamped(&mut self) -> Option<(Instant, CanFrame)> {
+        let mut g = self.bus.lock();
+        let now = g.now();
+        let q = &mut g.inboxes[self.index];
+        if q.front().is_some_and(|d| d.at <= now) {
+            q.pop_front().map(|d| (d.at, d.frame))
+        } else {
+            None
+        }
+    }
+}
+
 impl CanBus for MemNode {
     fn send(&mut self, frame: &CanFrame, _deadline: Instant) -> Result<(), BusError> {
         // Worked out before the bus is held: every node's send waits on the lock.
@@ -185,7 +381,7 @@ impl CanBus for MemNode {
         if g.bus_off {
             return Err(BusError::BusOff);
         }
-        let now = Instant::now();
+        let now = g.now();
         let q = &mut g.in_flight[self.index];
         while q.front().is_some_and(|t| *t <= now) {
             q.pop_front();
@@ -219,16 +415,22 @@ impl CanBus for MemNode {
             if g.bus_off {
                 return Err(BusError::BusOff);
             }
-            let now = Instant::now();
+            let now = g.now();
+            let modelled = g.modelled.is_some();
             match g.inboxes[self.index].front() {
                 Some(d) if d.at <= now => {
                     let d = g.inboxes[self.index].pop_front().expect("front");
                     return Ok(d.frame);
                 }
-                Some(d) => {
-                    if now >= deadline {
+                _ if now >= deadline => return Err(BusError::Timeout),
+                _ if modelled => {
+                    drop(g);
+                    if !self.bus.step_to(deadline) {
                         return Err(BusError::Timeout);
                     }
+                    g = self.bus.lock();
+                }
+                Some(d) => {
                     let wake = d.at.min(deadline);
                     g = self
                         .bus
@@ -239,9 +441,6 @@ impl CanBus for MemNode {
                         .0;
                 }
                 None => {
-                    if now >= deadline {
-                        return Err(BusError::Timeout);
-                    }
                     g = self
                         .bus
                         .inner
@@ -252,6 +451,18 @@ impl CanBus for MemNode {
                 }
             }
         }
+    }
+
+    fn now(&self) -> Instant {
+        self.bus.now()
+    }
+
+    fn utime(&self) -> i64 {
+        self.bus.utime()
+    }
+
+    fn wait_until(&mut self, t: Instant) {
+        self.bus.advance_to(t)
     }
 }
 
@@ -306,6 +517,63 @@ mod tests {
         // Busy time is exact; the load figure also depends on scheduling, so only its range
         // is checked.
         assert!(s.load() > 0.0 && s.load() <= 1.0, "{s:?}");
+    }
+
+    /// Answers every frame with its identifier plus one, and counts its steps.
+    struct Echo {
+        steps: u32,
+    }
+
+    impl Device for Echo {
+        fn step(&mut self, now: Instant, bus: &mut MemNode) {
+            self.steps += 1;
+            while let Ok(Some(f)) = bus.try_recv() {
+                let reply = CanFrame::standard(f.raw_id() as u16 + 1, f.data()).unwrap();
+                bus.send(&reply, now).unwrap();
+            }
+        }
+    }
+
+    #[test]
+    fn a_modelled_bus_moves_only_when_waited_on_and_steps_its_devices_on_the_way() {
+        let bus = MemBus::modelled(125_000);
+        let t0 = bus.now();
+        let echo = bus.attach(Echo { steps: 0 }, Duration::from_millis(1));
+        let mut host = bus.node();
+        // The machine's time does not move it.
+        std::thread::sleep(Duration::from_millis(5));
+        assert_eq!(bus.now(), t0);
+        assert_eq!(host.now(), t0);
+        // A request and its echo: each takes its exact time on the wire, and the device
+        // answers as the request arrives, not at its next tick.
+        let f = CanFrame::standard(0x600, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
+        let echoed = CanFrame::standard(0x601, f.data()).unwrap();
+        let bit = Duration::from_secs_f64(1.0 / 125_000.0);
+        let wire = bit * f.wire_bits() + bit * echoed.wire_bits();
+        host.send(&f, t0).unwrap();
+        let r = host.recv(t0 + Duration::from_secs(1)).unwrap();
+        assert_eq!((r.raw_id(), r.data()), (0x601, f.data()));
+        assert_eq!(bus.now() - t0, wire);
+        assert_eq!(host.try_recv_stamped(), None);
+        // Nothing comes: the wait ends at its deadline, exactly.
+        let before = bus.now();
+        let ms = Duration::from_millis(1);
+        assert_eq!(host.recv(before + ms * 5), Err(BusError::Timeout));
+        assert_eq!(bus.now(), before + ms * 5);
+        // The device stepped on its ticks (0 to 6 ms) and when the request arrived.
+        bus.advance_to(t0 + ms * 10);
+        assert_eq!(bus.now(), t0 + ms * 10);
+        assert_eq!(echo.lock().unwrap().steps, 10 + 1);
+        // The wall clock of the modelled time moves with it.
+        let u = bus.utime();
+        bus.advance_to(bus.now() + Duration::from_millis(250));
+        assert_eq!(bus.utime() - u, 250_000);
+        // A stamped receive gives each frame's arrival.
+        host.send(&f, bus.now()).unwrap();
+        let sent = bus.now();
+        bus.advance_to(sent + ms * 5);
+        let (at, r) = host.try_recv_stamped().unwrap();
+        assert_eq!((r.raw_id(), at - sent), (0x601, wire));
     }
 
     #[test]

@@ -57,7 +57,7 @@ pub fn exchange<B: CanBus + ?Sized, T>(
 ) -> Result<T, HostError> {
     bus.send(request, deadline)?;
     loop {
-        let now = Instant::now();
+        let now = bus.now();
         if now >= deadline {
             return Err(HostError::NoAnswer);
         }
@@ -97,7 +97,7 @@ pub fn sdo_exchange<B: CanBus + ?Sized>(
     exchange(
         bus,
         &frame,
-        Instant::now() + timeout,
+        bus.now() + timeout,
         |f| {
             let r = (f.raw_id() == want && !f.is_extended())
                 .then(|| ServerResponse::decode(f).ok().map(|(_, r)| r))
@@ -173,7 +173,7 @@ fn protocol_abort<B: CanBus + ?Sized>(
 ) -> HostError {
     if let sdo::SdoError::Protocol { code, .. } = e {
         if let Ok(f) = (sdo::ClientRequest::Abort { index, sub, code }).encode(node) {
-            let _ = bus.send(&f, Instant::now() + SLICE);
+            let _ = bus.send(&f, bus.now() + SLICE);
         }
     }
     HostError::Sdo(e)

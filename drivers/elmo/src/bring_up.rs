@@ -44,10 +44,10 @@ impl<B: CanBus> Master<B> {
     /// Keeps the SYNCs going until every drive has reported where its joint stands: a
     /// motion starts from there.
     fn wait_states(&mut self) -> Result<(), MasterError> {
-        let since = Instant::now();
+        let since = self.bus.now();
         let deadline = since + self.cfg.sdo_timeout * 5;
         loop {
-            let now = Instant::now();
+            let now = self.bus.now();
             self.pump_states(now)?;
             let missing = self
                 .track
@@ -69,7 +69,8 @@ impl<B: CanBus> Master<B> {
                     what: "the SYNC (no state PDO)".into(),
                 });
             }
-            std::thread::sleep(std::time::Duration::from_millis(1));
+            self.bus
+                .wait_until(now + std::time::Duration::from_millis(1));
         }
     }
 
@@ -196,7 +197,7 @@ impl<B: CanBus> Master<B> {
     }
 
     pub(crate) fn deadline(&self) -> Instant {
-        Instant::now() + self.cfg.sdo_timeout
+        self.bus.now() + self.cfg.sdo_timeout
     }
 
     /// Sets up the drive's table for tabulated motion (PVT, PT): rows `1..=N` as a ring
@@ -312,7 +313,7 @@ impl<B: CanBus> Master<B> {
             let ax = &mut self.track.axes[a];
             self.counters.dropped_rows += ax.drop_motion(motion) as u64;
             let f = ds402::controlword_frame(controlword_rpdo().cob_id(ax.node), cw);
-            if let Err(e) = self.bus.send(&f, Instant::now() + self.cfg.sdo_timeout) {
+            if let Err(e) = self.bus.send(&f, self.bus.now() + self.cfg.sdo_timeout) {
                 failed.push(MasterError::Bus(e));
             }
         }
@@ -362,10 +363,10 @@ impl<B: CanBus> Master<B> {
     /// The shutdown: a quick stop, the joints' deceleration watched until they stand still
     /// (or `stop_timeout`), then the torque off ([`Master::disable`]).
     pub fn shutdown(&mut self) -> Shutdown {
-        let t0 = Instant::now();
+        let t0 = self.bus.now();
         let mut failed = self.quick_stop("shutting down");
         let standstill = self.wait_standstill(t0 + self.cfg.stop_timeout);
-        let stopping = t0.elapsed();
+        let stopping = self.bus.now() - t0;
         failed.extend(self.disable());
         // The last frames must reach the bus (a gateway's batch).
         let _ = self.bus.try_recv();
@@ -381,8 +382,8 @@ impl<B: CanBus> Master<B> {
     fn wait_standstill(&mut self, deadline: Instant) -> bool {
         let mut still = 0;
         let mut last = None;
-        while Instant::now() < deadline {
-            let now = Instant::now();
+        while self.bus.now() < deadline {
+            let now = self.bus.now();
             if self.pump_states(now).is_err() {
                 return false;
             }
@@ -398,7 +399,7 @@ impl<B: CanBus> Master<B> {
                     return true;
                 }
             }
-            std::thread::sleep(Duration::from_millis(1));
+            self.bus.wait_until(now + Duration::from_millis(1));
         }
         false
     }

@@ -508,7 +508,7 @@ impl Track {
 
     /// While the master waits: frames are tracked, the master's heartbeat goes on.
     pub fn aside<B: CanBus + ?Sized>(&mut self, bus: &mut B, f: Option<&CanFrame>) {
-        let now = Instant::now();
+        let now = bus.now();
         if let Some(f) = f {
             self.on_frame(f, now, bus);
         }
@@ -522,13 +522,6 @@ impl Track {
 pub(crate) fn clock_offset(samples: &[(i64, i64, i64)]) -> Option<i64> {
     let &(a, w, b) = samples.iter().min_by_key(|(a, _, b)| b - a)?;
     (b - a <= 200).then(|| w - (a + b) / 2)
-}
-
-/// The system clock, µs since the Unix epoch.
-pub(crate) fn wall_us() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_micros() as i64)
 }
 
 /// The CANopen master of a set of Elmo drives.
@@ -628,9 +621,9 @@ impl<B: CanBus> Master<B> {
         // scheduler interrupted is taken again).
         let (now, wall_epoch) = (0..10)
             .map(|_| {
-                let a = Instant::now();
-                let w = wall_us();
-                (a, w, a.elapsed())
+                let a = bus.now();
+                let w = bus.utime();
+                (a, w, bus.now() - a)
             })
             .min_by_key(|s| s.2)
             .map(|(a, w, _)| (a, w))
@@ -669,9 +662,9 @@ impl<B: CanBus> Master<B> {
         // the scheduler interrupted is not taken for a step of the clock.
         let samples: Vec<(i64, i64, i64)> = (0..3)
             .map(|_| {
-                let a = self.us(Instant::now());
-                let w = wall_us();
-                (a, w, self.us(Instant::now()))
+                let a = self.us(self.bus.now());
+                let w = self.bus.utime();
+                (a, w, self.us(self.bus.now()))
             })
             .collect();
         if let Some(fresh) = clock_offset(&samples) {
@@ -708,6 +701,16 @@ impl<B: CanBus> Master<B> {
     /// Events since the last call.
     pub fn take_events(&mut self) -> Vec<Event> {
         std::mem::take(&mut self.track.events)
+    }
+
+    /// The bus's time ([`CanBus::now`]): the clock the master keeps its times on.
+    pub fn now(&self) -> Instant {
+        self.bus.now()
+    }
+
+    /// The wall clock at [`Master::now`], µs since the Unix epoch ([`CanBus::utime`]).
+    pub fn utime(&self) -> i64 {
+        self.bus.utime()
     }
 
     /// What the master says of itself.
@@ -816,7 +819,8 @@ impl<B: CanBus> Master<B> {
         data: Vec<u8>,
     ) -> Result<(), MasterError> {
         let node = self.track.axes[a].node;
-        let _ = self.track.heartbeat.poll(&mut self.bus, Instant::now());
+        let now = self.bus.now();
+        let _ = self.track.heartbeat.poll(&mut self.bus, now);
         let track = &mut self.track;
         host::sdo_write(
             &mut self.bus,
@@ -837,7 +841,8 @@ impl<B: CanBus> Master<B> {
 
     fn read_once(&mut self, a: usize, index: u16, sub: u8) -> Result<Vec<u8>, MasterError> {
         let node = self.track.axes[a].node;
-        let _ = self.track.heartbeat.poll(&mut self.bus, Instant::now());
+        let now = self.bus.now();
+        let _ = self.track.heartbeat.poll(&mut self.bus, now);
         let track = &mut self.track;
         host::sdo_read(
             &mut self.bus,
@@ -865,12 +870,14 @@ impl<B: CanBus> Master<B> {
             command: command_text(&cmd),
             code: 0,
         })?;
-        let _ = self.track.heartbeat.poll(&mut self.bus, Instant::now());
+        let now = self.bus.now();
+        let _ = self.track.heartbeat.poll(&mut self.bus, now);
         let track = &mut self.track;
+        let deadline = self.bus.now() + self.cfg.sdo_timeout;
         let result = host::exchange(
             &mut self.bus,
             &frame,
-            Instant::now() + self.cfg.sdo_timeout,
+            deadline,
             |f| match Reply::decode(f.data()) {
                 Ok(r) if f.raw_id() == want && r.name == cmd.name && r.index == cmd.index => {
                     Some(r.result)

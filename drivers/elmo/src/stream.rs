@@ -589,7 +589,7 @@ impl<B: CanBus> Master<B> {
                 Ok(()) => {
                     self.starts.pop_front();
                     if let Some((a, at)) = axis {
-                        let sent = self.us(Instant::now()).max(at);
+                        let sent = self.us(self.bus.now()).max(at);
                         let ax = &mut self.track.axes[a];
                         ax.playing = true;
                         ax.lag = sent - at;

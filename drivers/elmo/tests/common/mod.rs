@@ -1,15 +1,13 @@
-//! A rig of fake drives on an in-memory bus and a master, for the master's tests.
+//! A rig of fake drives on an in-memory bus on modelled time and a master, for the master's
+//! tests.
 
 #![allow(dead_code)]
 
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use stride_canbus::{MemBus, MemNode};
+use stride_canbus::{Attached, MemBus, MemNode};
 use stride_elmo::{JointConfig, Master, MasterConfig, Motion, Start, Trajectory};
-use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers};
+use stride_fakes::elmo::{ElmoConfig, FakeElmo, Levers, Probe};
 
 pub fn joint(i: u8) -> JointConfig {
     JointConfig {
@@ -26,11 +24,27 @@ pub fn joint(i: u8) -> JointConfig {
 }
 
 pub struct Rig {
+    /// The bus, on modelled time: the drives step on it as the master waits or the test
+    /// advances it, whatever else the machine runs.
     pub bus: MemBus,
-    pub stop: Arc<AtomicBool>,
-    pub drives: Vec<JoinHandle<FakeElmo>>,
+    pub drives: Vec<Attached<FakeElmo>>,
     pub levers: Vec<Levers>,
     pub m: Master<MemNode>,
+}
+
+/// `n` fake drives on a modelled bus, each configured by `drive`.
+pub fn drives(
+    bus: &MemBus,
+    n: u8,
+    levers: &[Levers],
+    drive: impl Fn(u8) -> ElmoConfig,
+) -> Vec<Attached<FakeElmo>> {
+    (0..n)
+        .map(|i| {
+            let l = levers.get(i as usize).cloned().unwrap_or_default();
+            bus.attach(FakeElmo::new(drive(i + 1), l), Duration::from_millis(1))
+        })
+        .collect()
 }
 
 impl Rig {
@@ -62,29 +76,14 @@ impl Rig {
         bits_per_second: u32,
         pull: impl FnOnce(&[Levers]),
     ) -> Result<Rig, stride_elmo::MasterError> {
-        let bus = MemBus::new(bits_per_second);
-        let stop = Arc::new(AtomicBool::new(false));
+        let bus = MemBus::modelled(bits_per_second);
         let levers: Vec<Levers> = (0..n).map(|_| Levers::default()).collect();
         pull(&levers);
-        let drives: Vec<JoinHandle<FakeElmo>> = levers
-            .iter()
-            .enumerate()
-            .map(|(i, l)| {
-                FakeElmo::new(ElmoConfig::new(i as u8 + 1), l.clone())
-                    .spawn(bus.node(), stop.clone())
-            })
-            .collect();
+        let drives = drives(&bus, n, &levers, ElmoConfig::new);
         let mut m = Master::new(bus.node(), (1..=n).map(joint).collect(), cfg).unwrap();
-        if let Err(e) = m.bring_up() {
-            stop.store(true, Ordering::Relaxed);
-            for d in drives {
-                let _ = d.join();
-            }
-            return Err(e);
-        }
+        m.bring_up()?;
         let mut rig = Rig {
             bus,
-            stop,
             drives,
             levers,
             m,
@@ -93,26 +92,37 @@ impl Rig {
         Ok(rig)
     }
 
+    /// The bus's (modelled) time.
+    pub fn now(&self) -> Instant {
+        self.bus.now()
+    }
+
+    /// Lets `d` pass with the master held up (the drives go on).
+    pub fn wait(&mut self, d: Duration) {
+        self.bus.advance_to(self.now() + d);
+    }
+
     /// Pumps for `d`, at every wake the master asks for (at least every millisecond).
     pub fn run(&mut self, d: Duration) {
-        let end = Instant::now() + d;
-        while Instant::now() < end {
-            self.m.pump(Instant::now()).unwrap();
+        let end = self.now() + d;
+        while self.now() < end {
+            let now = self.now();
+            self.m.pump(now).unwrap();
+            // A master with work left at once comes round again as a busy loop's next turn.
             let wake = self
                 .m
                 .next_wake()
-                .min(Instant::now() + Duration::from_millis(1))
-                .min(end);
-            if let Some(w) = wake.checked_duration_since(Instant::now()) {
-                std::thread::sleep(w);
-            }
+                .min(now + Duration::from_millis(1))
+                .min(end)
+                .max(now + Duration::from_micros(50));
+            self.bus.advance_to(wake);
         }
     }
 
     /// Pumps until the master is idle (at most 10 s), then lets the motors settle.
     pub fn play(&mut self) {
-        let deadline = Instant::now() + Duration::from_secs(10);
-        while !self.m.idle() && Instant::now() < deadline {
+        let deadline = self.now() + Duration::from_secs(10);
+        while !self.m.idle() && self.now() < deadline {
             self.run(Duration::from_millis(5));
         }
         assert!(self.m.idle(), "trajectory not finished");
@@ -121,9 +131,9 @@ impl Rig {
 
     /// Pumps for `d`, recording every joint's position at each state.
     pub fn record(&mut self, d: Duration) -> Vec<(Instant, Vec<f64>)> {
-        let end = Instant::now() + d;
+        let end = self.now() + d;
         let mut out: Vec<(Instant, Vec<f64>)> = Vec::new();
-        while Instant::now() < end {
+        while self.now() < end {
             self.run(Duration::from_millis(1));
             let s = self.m.states();
             let t = s[0].1.updated.unwrap();
@@ -138,11 +148,20 @@ impl Rig {
         self.m.states().iter().map(|(_, s)| s.position).collect()
     }
 
-    /// Stops the fake drives and returns them.
-    pub fn finish(self) -> Vec<FakeElmo> {
-        self.stop.store(true, Ordering::Relaxed);
-        self.drives.into_iter().map(|d| d.join().unwrap()).collect()
+    /// What each fake drive shows, as an instrument would.
+    pub fn probes(&self) -> Vec<Probe> {
+        probes(&self.drives)
     }
+
+    /// The drives as they are left.
+    pub fn finish(self) -> Vec<Probe> {
+        self.probes()
+    }
+}
+
+/// What each of `drives` shows.
+pub fn probes(drives: &[Attached<FakeElmo>]) -> Vec<Probe> {
+    drives.iter().map(|d| d.lock().unwrap().probe()).collect()
 }
 
 /// The SYNC period of the master's default configuration.

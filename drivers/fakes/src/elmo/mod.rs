@@ -45,7 +45,7 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use stride_canbus::{BusError, CanBus, CanFrame};
+use stride_canbus::{BusError, CanBus, CanFrame, Device, MemNode};
 use stride_canopen::ds402::State as DriveState;
 use stride_canopen::emcy::Emcy;
 use stride_canopen::frame::{CobId, Function, NodeId};
@@ -98,6 +98,14 @@ pub struct Levers {
     /// The next this many SDO requests and interpreter commands to the drive are lost on
     /// the wire (a busy bus, a slow gateway): the drive never sees them.
     pub lose_requests: Arc<std::sync::atomic::AtomicU32>,
+}
+
+/// On a modelled bus ([`stride_canbus::MemBus::attach`]) the drive steps as on its own thread
+/// (every millisecond, and as frames come), on the bus's time.
+impl Device for FakeElmo {
+    fn step(&mut self, now: Instant, bus: &mut MemNode) {
+        FakeElmo::step(self, now, bus);
+    }
 }
 
 /// What a test can read of a fake drive after it ran (the drive's own view, as a bench
@@ -193,12 +201,12 @@ impl FakeElmo {
     ) -> JoinHandle<FakeElmo> {
         std::thread::spawn(move || {
             while !stop.load(Ordering::Relaxed) {
-                let now = Instant::now();
+                let now = bus.now();
                 self.step(now, &mut bus);
                 // Wait for traffic or the next millisecond.
                 match bus.recv(now + Duration::from_millis(1)) {
                     Ok(f) => {
-                        self.on_frame(&f, Instant::now());
+                        self.on_frame(&f, bus.now());
                         self.flush(&mut bus);
                     }
                     Err(BusError::Timeout) => {}
@@ -231,7 +239,7 @@ impl FakeElmo {
 
     fn flush(&mut self, bus: &mut impl CanBus) {
         for f in self.outbox.drain(..) {
-            let _ = bus.send(&f, Instant::now() + Duration::from_millis(10));
+            let _ = bus.send(&f, bus.now() + Duration::from_millis(10));
         }
     }
 

@@ -3,7 +3,7 @@ use super::interpreter::{
 };
 use super::table::ERR_OUT_OF_RANGE;
 use super::*;
-use stride_canbus::MemBus;
+use stride_canbus::{Attached, MemBus};
 use stride_canopen::ds402;
 use stride_canopen::elmo::{Command as Interp, PvtRow, Reply, Value, PT_OBJECT};
 use stride_canopen::emcy::ElmoEmcy;
@@ -28,8 +28,19 @@ fn code(e: HostError) -> AbortCode {
 }
 
 impl Host {
+    /// The bus's (modelled) time.
+    fn now(&self) -> Instant {
+        self.bus.now()
+    }
+
+    /// Lets `d` pass (the drive goes on).
+    fn wait(&mut self, d: Duration) {
+        let t = self.now() + d;
+        self.bus.wait_until(t);
+    }
+
     fn recv_until(&mut self, mut want: impl FnMut(&CanFrame) -> bool) -> CanFrame {
-        let deadline = Instant::now() + T;
+        let deadline = self.now() + T;
         loop {
             let f = self.bus.recv(deadline).expect("frame before the deadline");
             if want(&f) {
@@ -50,10 +61,11 @@ impl Host {
     fn interp(&mut self, cmd: Interp) -> Result<Value, u32> {
         let tpdo2 = CobId::of(Function::Tpdo(2), self.node).raw() as u32;
         let f = cmd.encode(self.node).unwrap();
+        let deadline = self.now() + T;
         let reply = exchange(
             &mut self.bus,
             &f,
-            Instant::now() + T,
+            deadline,
             |f| (f.raw_id() == tpdo2).then(|| Reply::decode(f.data()).unwrap()),
             &mut ignore,
         )
@@ -65,7 +77,7 @@ impl Host {
     /// NMT start, then the controlword walk to operation enabled.
     fn enable(&mut self) {
         self.bus
-            .send(&nmt::encode(nmt::Command::Start, 0), Instant::now())
+            .send(&nmt::encode(nmt::Command::Start, 0), self.now())
             .unwrap();
         for cw in [0x06u16, 0x07, 0x0f] {
             self.sdo_write(0x6040, 0, cw.to_le_bytes().to_vec())
@@ -107,7 +119,7 @@ impl Host {
                 time_ms: 10,
             };
             self.bus
-                .send(&row.frame(cfg.cob_id(node)).unwrap(), Instant::now())
+                .send(&row.frame(cfg.cob_id(node)).unwrap(), self.now())
                 .unwrap();
         }
         assert_eq!(
@@ -115,17 +127,18 @@ impl Host {
             Ok(Value::Int(1))
         );
         let bg = Interp::set(b"BG", 0, Value::Int(0)).encode(node).unwrap();
-        self.bus.send(&bg, Instant::now()).unwrap();
+        self.bus.send(&bg, self.now()).unwrap();
     }
 }
 
-fn start() -> (Host, Arc<AtomicBool>, Levers, JoinHandle<FakeElmo>) {
-    let bus = MemBus::new(1_000_000);
+/// A fake drive (node 3) and a host on a bus on modelled time: the drive steps every
+/// millisecond of it as the host waits, however the machine schedules the test.
+fn start() -> (Host, Levers, Attached<FakeElmo>) {
+    let bus = MemBus::modelled(1_000_000);
     let host_node = bus.node();
     let levers = Levers::default();
-    let stop = Arc::new(AtomicBool::new(false));
     let drive = FakeElmo::new(ElmoConfig::new(3), levers.clone());
-    let h = drive.spawn(bus.node(), stop.clone());
+    let h = bus.attach(drive, Duration::from_millis(1));
     let mut host = Host {
         bus: host_node,
         node: NodeId::new(3).unwrap(),
@@ -133,17 +146,17 @@ fn start() -> (Host, Arc<AtomicBool>, Levers, JoinHandle<FakeElmo>) {
     // Boot-up message first.
     let f = host.recv_until(|f| f.raw_id() == 0x703);
     assert_eq!(f.data(), [0x00]);
-    (host, stop, levers, h)
+    (host, levers, h)
 }
 
-fn finish(stop: Arc<AtomicBool>, h: JoinHandle<FakeElmo>) -> FakeElmo {
-    stop.store(true, Ordering::Relaxed);
-    h.join().unwrap()
+/// What the drive shows at the end.
+fn finish(h: Attached<FakeElmo>) -> Probe {
+    h.lock().unwrap().probe()
 }
 
 #[test]
 fn sdo_server_reads_writes_and_aborts() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     assert_eq!(host.sdo_read(0x1000, 0).unwrap(), [0x92, 0x01, 0x02, 0x00]);
     assert_eq!(
         host.sdo_read(0x1008, 0).unwrap(),
@@ -163,12 +176,12 @@ fn sdo_server_reads_writes_and_aborts() {
         .unwrap();
     let hb = host.recv_until(|f| f.raw_id() == 0x703);
     assert_eq!(hb.data(), [0x7f]); // pre-operational
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn an_absent_sub_index_aborts_with_no_sub_index() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     // 0x1018 exists with subs 0..=4: sub 9 is an absent sub-index, not an absent object.
     assert_eq!(host.sdo_read(0x1018, 9), Err(AbortCode::NO_SUBINDEX));
     assert_eq!(host.sdo_read(0x1800, 3), Err(AbortCode::NO_SUBINDEX));
@@ -176,12 +189,12 @@ fn an_absent_sub_index_aborts_with_no_sub_index() {
         host.sdo_write(0x6040, 1, vec![0, 0]),
         Err(AbortCode::NO_SUBINDEX)
     );
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn every_record_answers_its_highest_sub_index() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     assert_eq!(host.sdo_read(0x1018, 0).unwrap(), [4]);
     for i in 0..4 {
         assert_eq!(
@@ -204,12 +217,12 @@ fn every_record_answers_its_highest_sub_index() {
         host.sdo_write(0x1018, 0, vec![5]),
         Err(AbortCode::READ_ONLY)
     );
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn a_block_transfer_is_refused_with_bad_command() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     let sdo_tx = CobId::of(Function::SdoTx, host.node).raw() as u32;
     for download in [false, true] {
         let req = ClientRequest::Block {
@@ -218,7 +231,7 @@ fn a_block_transfer_is_refused_with_bad_command() {
             sub: 0,
         };
         host.bus
-            .send(&req.encode(host.node).unwrap(), Instant::now())
+            .send(&req.encode(host.node).unwrap(), host.now())
             .unwrap();
         let f = host.recv_until(|f| f.raw_id() == sdo_tx);
         assert_eq!(
@@ -230,14 +243,14 @@ fn a_block_transfer_is_refused_with_bad_command() {
             }
         );
     }
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn sdo_is_not_served_in_stopped() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     host.bus
-        .send(&nmt::encode(nmt::Command::Stop, 3), Instant::now())
+        .send(&nmt::encode(nmt::Command::Stop, 3), host.now())
         .unwrap();
     let e = sdo_read(
         &mut host.bus,
@@ -252,16 +265,16 @@ fn sdo_is_not_served_in_stopped() {
     host.bus
         .send(
             &nmt::encode(nmt::Command::EnterPreOperational, 3),
-            Instant::now(),
+            host.now(),
         )
         .unwrap();
     assert_eq!(host.sdo_read(0x1000, 0).unwrap(), [0x92, 0x01, 0x02, 0x00]);
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn reset_communication_restores_the_communication_area() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     host.sdo_write(0x1017, 0, 100u16.to_le_bytes().to_vec())
         .unwrap();
     host.sdo_write(0x6065, 0, 1234u32.to_le_bytes().to_vec())
@@ -269,7 +282,7 @@ fn reset_communication_restores_the_communication_area() {
     host.bus
         .send(
             &nmt::encode(nmt::Command::ResetCommunication, 3),
-            Instant::now(),
+            host.now(),
         )
         .unwrap();
     let boot = host.recv_until(|f| f.raw_id() == 0x703 && f.data() == [0]);
@@ -277,12 +290,12 @@ fn reset_communication_restores_the_communication_area() {
     assert_eq!(host.sdo_read(0x1017, 0).unwrap(), [0, 0]);
     // The application area keeps its values.
     assert_eq!(host.sdo_read(0x6065, 0).unwrap(), 1234u32.to_le_bytes());
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn a_cleared_fault_sends_the_error_reset_emcy() {
-    let (mut host, stop, levers, h) = start();
+    let (mut host, levers, h) = start();
     host.enable();
     levers.fault.store(true, Ordering::Relaxed);
     let f = host.recv_until(|f| f.raw_id() == 0x083);
@@ -328,12 +341,12 @@ fn a_cleared_fault_sends_the_error_reset_emcy() {
         &mut ignore,
     );
     assert_eq!(e, Err(HostError::NoAnswer));
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn pdo_mapping_follows_the_cia_301_rules() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     let entry = |i: u32| i.to_le_bytes().to_vec();
     // TPDO1 is valid: neither its mapping nor its COB-ID changes.
     assert_eq!(
@@ -388,12 +401,12 @@ fn pdo_mapping_follows_the_cia_301_rules() {
     for (i, s, v) in cfg.sdo_writes(host.node) {
         host.sdo_write(i, s, v).unwrap();
     }
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn a_drive_whose_master_heartbeat_stops_quick_stops() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     // Watch node 127 with a 50 ms consumer time; quick stop when it stops.
     let entry = ConsumerEntry {
         node: 127,
@@ -411,7 +424,7 @@ fn a_drive_whose_master_heartbeat_stops_quick_stops() {
         host.bus
             .send(
                 &stride_canopen::heartbeat::encode(master, nmt::State::Operational),
-                Instant::now(),
+                host.now(),
             )
             .unwrap()
     };
@@ -419,26 +432,26 @@ fn a_drive_whose_master_heartbeat_stops_quick_stops() {
     // A 0.6 s ramp at 20 000 counts/s, the master beating every 20 ms.
     host.stream_ramp(60, 200, 20_000);
     for _ in 0..10 {
-        std::thread::sleep(Duration::from_millis(20));
+        host.wait(Duration::from_millis(20));
         beat(&mut host);
     }
     assert_eq!(host.state(), DriveState::OperationEnabled);
     // The master dies: within the consumer time the drive reports it and stops itself.
-    let t0 = Instant::now();
+    let t0 = host.now();
     let f = host.recv_until(|f| {
         f.raw_id() == 0x083 && Emcy::decode(f).unwrap().code == Emcy::HEARTBEAT_ERROR
     });
     assert!(
-        t0.elapsed() < Duration::from_millis(100),
+        (host.now() - t0) < Duration::from_millis(100),
         "{:?}",
-        t0.elapsed()
+        (host.now() - t0)
     );
     assert_eq!(Emcy::decode(&f).unwrap().register, 0x11);
     assert_eq!(host.state(), DriveState::QuickStopActive);
     let at_stop = host.position();
-    std::thread::sleep(Duration::from_millis(300));
+    host.wait(Duration::from_millis(300));
     let held = host.position();
-    std::thread::sleep(Duration::from_millis(50));
+    host.wait(Duration::from_millis(50));
     // 20 000² / (2 × 200 000) = 1000 counts of braking, then it holds.
     assert!((held - at_stop) < 1500, "{at_stop} -> {held}");
     assert_eq!(host.position(), held);
@@ -447,13 +460,13 @@ fn a_drive_whose_master_heartbeat_stops_quick_stops() {
         .unwrap();
     let hb = host.recv_until(|f| f.raw_id() == 0x703);
     assert_eq!(hb.data(), [0x7f]);
-    let d = finish(stop, h);
-    assert_eq!(d.probe().heartbeat_events, 1);
+    let d = finish(h);
+    assert_eq!(d.heartbeat_events, 1);
 }
 
 #[test]
 fn ds402_enable_pvt_motion_and_underflow() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     host.enable();
     assert_eq!(host.state(), DriveState::OperationEnabled);
     // Map RPDO3 to the PVT object, then stream 10 rows of a ramp to 1000 counts.
@@ -470,15 +483,15 @@ fn ds402_enable_pvt_motion_and_underflow() {
         matches!(e, ElmoEmcy::MotionTerminated { reason: 3, .. }),
         "{e}"
     );
-    std::thread::sleep(Duration::from_millis(50));
+    host.wait(Duration::from_millis(50));
     let pos = host.position();
     assert!((pos - 1000).abs() <= 2, "position {pos}");
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn pt_table_plays_a_point_every_mp4_samples() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     host.enable();
     // RPDO4 carries PT data: two points per frame.
     let cfg = pdo::PdoConfig {
@@ -506,13 +519,13 @@ fn pt_table_plays_a_point_every_mp4_samples() {
     let points: Vec<i32> = (0..=20).map(|k| k * 100).chain([2000]).collect();
     for pair in points.chunks(2) {
         let f = stride_canopen::elmo::pt_frame(cfg.cob_id(host.node), pair[0], pair[1]);
-        host.bus.send(&f, Instant::now()).unwrap();
+        host.bus.send(&f, host.now()).unwrap();
     }
     assert_eq!(
         host.interp(Interp::set(b"PT", 0, Value::Int(1))),
         Ok(Value::Int(1))
     );
-    let t0 = Instant::now();
+    let t0 = host.now();
     assert_eq!(
         host.interp(Interp::set(b"BG", 0, Value::Int(0))),
         Ok(Value::Int(0))
@@ -520,19 +533,19 @@ fn pt_table_plays_a_point_every_mp4_samples() {
     let mut mid = None;
     while host.position() < 1995 {
         assert!(
-            t0.elapsed() < Duration::from_secs(3),
+            (host.now() - t0) < Duration::from_secs(3),
             "the PT motion stalled"
         );
-        if mid.is_none() && t0.elapsed() >= Duration::from_millis(60) {
+        if mid.is_none() && (host.now() - t0) >= Duration::from_millis(60) {
             mid = Some(host.position());
         }
-        std::thread::sleep(Duration::from_millis(5));
+        host.wait(Duration::from_millis(5));
     }
     // 20 segments of 10 ms cannot end sooner than 200 ms; it passed through the middle.
     assert!(
-        t0.elapsed() >= Duration::from_millis(195),
+        (host.now() - t0) >= Duration::from_millis(195),
         "{:?}",
-        t0.elapsed()
+        (host.now() - t0)
     );
     assert!(mid.is_some_and(|p| p > 0 && p < 2000), "{mid:?}");
     // MP[3] bit 1: running out of points is the expected end, so no emergency came.
@@ -543,14 +556,14 @@ fn pt_table_plays_a_point_every_mp4_samples() {
             .is_none_or(|f| f.raw_id() != 0x083),
         "unexpected emergency"
     );
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn interpreter_refuses_what_a_drive_refuses() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     host.bus
-        .send(&nmt::encode(nmt::Command::Start, 0), Instant::now())
+        .send(&nmt::encode(nmt::Command::Start, 0), host.now())
         .unwrap();
     let bg = Interp::set(b"BG", 0, Value::Int(0));
     assert_eq!(host.interp(bg), Err(ERR_MOTOR_OFF));
@@ -575,16 +588,16 @@ fn interpreter_refuses_what_a_drive_refuses() {
         Err(ERR_MOTOR_ON)
     );
     assert_eq!(host.interp(Interp::get(b"XQ", 0)), Err(ERR_UNKNOWN));
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn sdo_aborts_name_the_transfer_and_client_aborts_get_no_answer() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     let sdo_tx = CobId::of(Function::SdoTx, host.node).raw() as u32;
     let send = |host: &mut Host, req: ClientRequest| {
         host.bus
-            .send(&req.encode(host.node).unwrap(), Instant::now())
+            .send(&req.encode(host.node).unwrap(), host.now())
             .unwrap();
     };
     let start_upload = |host: &mut Host| {
@@ -619,7 +632,7 @@ fn sdo_aborts_name_the_transfer_and_client_aborts_get_no_answer() {
             code: AbortCode::GENERAL,
         },
     );
-    let deadline = Instant::now() + Duration::from_millis(100);
+    let deadline = host.now() + Duration::from_millis(100);
     while let Ok(f) = host.bus.recv(deadline) {
         assert_ne!(f.raw_id(), sdo_tx, "answered an abort");
     }
@@ -637,7 +650,7 @@ fn sdo_aborts_name_the_transfer_and_client_aborts_get_no_answer() {
     start_upload(&mut host);
     let sdo_rx = CobId::of(Function::SdoRx, host.node).raw();
     let unknown = CanFrame::standard(sdo_rx, &[0xe0, 0, 0, 0, 0, 0, 0, 0]).unwrap();
-    host.bus.send(&unknown, Instant::now()).unwrap();
+    host.bus.send(&unknown, host.now()).unwrap();
     let f = host.recv_until(|f| f.raw_id() == sdo_tx);
     assert_eq!(
         ServerResponse::decode(&f).unwrap().1,
@@ -647,12 +660,12 @@ fn sdo_aborts_name_the_transfer_and_client_aborts_get_no_answer() {
             code: AbortCode::BAD_COMMAND
         }
     );
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn profile_position_handshake_and_trapezoid() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     host.enable();
     let status = |host: &mut Host| {
         let sw = host.sdo_read(0x6041, 0).unwrap();
@@ -671,7 +684,7 @@ fn profile_position_handshake_and_trapezoid() {
     for (i, s, v) in mv.writes() {
         host.sdo_write(i, s, v).unwrap();
     }
-    let t0 = Instant::now();
+    let t0 = host.now();
     host.sdo_write(0x6040, 0, mv.controlword(true).to_le_bytes().to_vec())
         .unwrap();
     let st = status(&mut host);
@@ -680,13 +693,13 @@ fn profile_position_handshake_and_trapezoid() {
         .unwrap();
     assert!(!status(&mut host).mode_bit, "acknowledge stays up");
     while !status(&mut host).target_reached {
-        assert!(t0.elapsed() < Duration::from_secs(3), "never reached");
-        std::thread::sleep(Duration::from_millis(5));
+        assert!((host.now() - t0) < Duration::from_secs(3), "never reached");
+        host.wait(Duration::from_millis(5));
     }
     assert!(
-        t0.elapsed() >= Duration::from_millis(290),
+        (host.now() - t0) >= Duration::from_millis(290),
         "{:?}",
-        t0.elapsed()
+        (host.now() - t0)
     );
     assert!((host.position() - 20_000).abs() <= 1);
     // A relative set-point goes on from there.
@@ -703,32 +716,32 @@ fn profile_position_handshake_and_trapezoid() {
     host.sdo_write(0x6040, 0, back.controlword(false).to_le_bytes().to_vec())
         .unwrap();
     while !status(&mut host).target_reached {
-        assert!(t0.elapsed() < Duration::from_secs(5), "never reached");
-        std::thread::sleep(Duration::from_millis(5));
+        assert!((host.now() - t0) < Duration::from_secs(5), "never reached");
+        host.wait(Duration::from_millis(5));
     }
     assert!((host.position() - 15_000).abs() <= 1);
-    finish(stop, h);
+    finish(h);
 }
 
 #[test]
 fn quick_stop_decelerates_then_holds() {
-    let (mut host, stop, _, h) = start();
+    let (mut host, _, h) = start();
     host.enable();
     // A slow deceleration makes the stopping distance visible: 100 000 counts/s².
     host.sdo_write(0x6085, 0, 100_000u32.to_le_bytes().to_vec())
         .unwrap();
     // A steady 20 000 counts/s ramp for 0.5 s.
     host.stream_ramp(50, 200, 20_000);
-    std::thread::sleep(Duration::from_millis(150));
+    host.wait(Duration::from_millis(150));
     host.sdo_write(0x6040, 0, 0x02u16.to_le_bytes().to_vec())
         .unwrap();
     let at_stop = host.position();
-    std::thread::sleep(Duration::from_millis(400));
+    host.wait(Duration::from_millis(400));
     let held = host.position();
-    std::thread::sleep(Duration::from_millis(100));
+    host.wait(Duration::from_millis(100));
     // v²/2a = 20 000² / 200 000 = 2000 counts of braking distance, then it holds.
     assert!(held - at_stop > 1000, "stopped dead: {at_stop} -> {held}");
     assert!(held < 200 * 50, "did not stop: {held}");
     assert!((host.position() - held).abs() <= 2, "did not hold");
-    finish(stop, h);
+    finish(h);
 }
