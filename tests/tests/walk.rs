@@ -486,13 +486,17 @@ const PLAN_WAY: [&str; 4] = [
 ];
 
 /// The bytes of each channel in an LCM log.
-fn bytes_per_channel(log: &Path) -> std::collections::BTreeMap<String, u64> {
+/// Bytes per channel in an LCM log, and the time from its first event to its last (s), by
+/// the logger's own stamps.
+fn bytes_per_channel(log: &Path) -> (std::collections::BTreeMap<String, u64>, f64) {
     let mut r = lcm::LogReader::open(log).unwrap();
     let mut out = std::collections::BTreeMap::new();
+    let mut span = (i64::MAX, i64::MIN);
     while let Some(e) = r.read_event() {
         *out.entry(e.channel.clone()).or_insert(0) += e.data.len() as u64;
+        span = (span.0.min(e.timestamp), span.1.max(e.timestamp));
     }
-    out
+    (out, (span.1 - span.0).max(1) as f64 / 1e6)
 }
 
 /// The split profile on two computers: the robot's deputy runs the gait, the bridges, the
@@ -604,16 +608,15 @@ fn the_split_profile_walks_the_robot_with_the_planner_on_the_laptop() {
         c
     });
     let bytes0 = split.hosts.link_bytes("robot");
-    let t0 = std::time::Instant::now();
     let (ok, summary) = split.walk("1.0,0", 90.0);
-    let secs = t0.elapsed().as_secs_f64();
     let crossed = split.hosts.link_bytes("robot") - bytes0;
     let _ = logger.interrupt();
     split.shut_down();
     assert!(ok, "{summary}");
     assert!(summary.contains("reached"), "{summary}");
     assert!(summary.contains("collisions 0;"), "{summary}");
-    let channels = bytes_per_channel(&log);
+    // Rates over the laptop logger's own span of the walk.
+    let (channels, secs) = bytes_per_channel(&log);
     let table: Vec<String> = channels
         .iter()
         .map(|(c, b)| format!("{c} {:.1} kB/s", *b as f64 / secs / 1e3))
@@ -645,6 +648,18 @@ fn the_split_profile_walks_the_robot_with_the_planner_on_the_laptop() {
     // Half of a 150 Mbit/s Wi-Fi.
     let budget = 150e6 / 8.0 / 2.0;
     assert!(rate < budget, "{rate} B/s crossed, budget {budget}");
+}
+
+/// When each message on `channel` was logged, µs, in log order.
+fn stamps(log: &Path, channel: &str) -> Vec<i64> {
+    let mut r = lcm::LogReader::open(log).unwrap();
+    let mut out = vec![];
+    while let Some(e) = r.read_event() {
+        if e.channel == channel {
+            out.push(e.timestamp);
+        }
+    }
+    out
 }
 
 /// Each simulated world's report in an LCM log (one still being written: up to its last
@@ -758,18 +773,20 @@ fn on_the_split_profile_a_lost_link_stops_the_robot_within_four_touch_downs_and_
 #[test]
 #[ignore = "multicast: scripts/test runs it in a private network namespace"]
 fn on_the_split_profile_a_killed_planner_makes_the_robot_step_in_place_until_it_is_back() {
-    // The laptop's planner killed mid-walk (restarted by its deputy after 3 s): the robot
-    // steps in place meanwhile, and walks on to the goal once the restarted planner answers
-    // the gait's repeated request.
+    // The laptop's planner killed mid-walk (restarted by its deputy after 6 s, longer than
+    // the four steps the robot walks on its last plan: back after 3 s, it answered while the
+    // robot still walked them, and nothing stepped in place): the robot steps in place
+    // meanwhile, and walks on to the goal once the restarted planner answers the gait's
+    // repeated request.
     let _one = ONE_WALK.lock().unwrap_or_else(|e| e.into_inner());
     let mut split = Split::start_with(7825, OPEN, false, |p| {
         p.insert(
             "backoff".into(),
-            toml::toml! { initial = 3.0 max = 3.0 }.into(),
+            toml::toml! { initial = 6.0 max = 6.0 }.into(),
         );
     });
     let log = split.dir.path().join("robot.lcmlog");
-    let logger = split.logger("robot", "SIM_REPORT", &log);
+    let logger = split.logger("robot", "(SIM_REPORT|FOOTSTEP_PLAN)", &log);
     let walk = split.walk_in_background("2.5,0", 150.0);
     wait_report(&log, 90.0, |r| front(r) > 0.6);
     let killed = now_utime();
@@ -788,10 +805,23 @@ fn on_the_split_profile_a_killed_planner_makes_the_robot_step_in_place_until_it_
         restarted.len() == 1 && restarted[0] != planner[0],
         "the planner was not restarted: {restarted:?}"
     );
-    let steps = touchdowns_from(&sim_reports(&log), killed);
-    eprintln!("touch-downs after the planner was killed (forward?): {steps:?}");
-    // In place after at most the step under way, the step the last plan fixed and the stop
-    // (as with the link lost: four touch-downs), then forward again.
+    // Counted from the last plan the robot took before the planner's silence, both stamped
+    // by the robot's logger (a plan answered as the kill came is walked as it should be).
+    let plans = stamps(&log, "FOOTSTEP_PLAN");
+    let last = plans
+        .windows(2)
+        .find(|w| w[1] > killed && w[1] - w[0] > 2_000_000)
+        .map(|w| w[0])
+        .expect("a silence of the planner");
+    let steps = touchdowns_from(&sim_reports(&log), last);
+    eprintln!(
+        "touch-downs after the last plan before the planner's silence ({:.2} s before the \
+         kill; forward?): {steps:?}",
+        (killed - last) as f64 / 1e6
+    );
+    // In place after at most the step landing as the last plan came, the step it was asked
+    // for, the step it fixed and the stop (as with the link lost: four touch-downs), then
+    // forward again.
     let first_in_place = steps.iter().position(|f| !f);
     assert!(
         first_in_place.is_some_and(|i| i <= 4),
@@ -1236,9 +1266,7 @@ fn a_goal_the_planner_cannot_reach_ends_the_walk_with_its_reason_and_the_next_is
     let url = udpm_url(7833);
     let profile = setup(dir.path(), &url, FLAT, "[body]\nfall_margin = 0.1\n");
     let launcher = launch(&profile, &url, dir.path());
-    let t0 = std::time::Instant::now();
     let (ok, far) = walk(&url, "1e9,0", 60.0);
-    let took = t0.elapsed();
     let (ok2, near) = walk(&url, "1.0,0", 90.0);
     let (st, out) = launcher.interrupt();
     assert!(!ok, "{far}");
@@ -1247,8 +1275,9 @@ fn a_goal_the_planner_cannot_reach_ends_the_walk_with_its_reason_and_the_next_is
             && far.contains("beyond the 50 m a plan may reach"),
         "{far}"
     );
+    // ("the walk ended" is said only of a goal the gait dropped on the planner's answer, not
+    // of a walk that ran out of time.)
     assert!(far.lines().all(|l| l.len() < 300), "{far}");
-    assert!(took < Duration::from_secs(40), "{took:?}: {far}");
     assert!(ok2, "{near}\n{out}");
     assert!(near.contains("reached"), "{near}");
     assert!(st.success(), "{out}");

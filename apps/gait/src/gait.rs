@@ -193,6 +193,7 @@ pub(crate) fn body<'a>(
                         walker,
                         joints,
                         switch_ahead: cfg.walker.switch_ahead,
+                        decide_within: cfg.chunk,
                     },
                 },
                 groups,

@@ -48,6 +48,9 @@ pub struct Controller {
     pub joints: Joints,
     /// How far ahead of a decision the walker switches to a new pattern, s.
     pub switch_ahead: f64,
+    /// How far the end of what was streamed may move from one turn to the next (the
+    /// stream's chunk), s: the walker decides the steps that will be fixed by then.
+    pub decide_within: f64,
 }
 
 impl Controller {
@@ -97,7 +100,7 @@ impl Controller {
             }
         }
         let at = self.switch_time(t, stream_end);
-        out.changed = self.walker.tick(at, &check);
+        out.changed = self.walker.tick_ahead(at, self.decide_within, &check);
         if out.changed {
             if let Some(j) = cache.borrow_mut().take() {
                 out.adopt = Some(j);

@@ -69,8 +69,8 @@ pub struct WalkerConfig {
 }
 
 /// How long before a step is fixed (at the switch) the walker decides that no plan came for
-/// it, s: a plan may come until then; a walker ticked less often than this decides a step
-/// later.
+/// it, s: a plan may come until then. A caller that ticks less often says so
+/// ([`Walker::tick_ahead`]).
 const STALE_DECISION: f64 = 0.1;
 
 fn steps_per_plan() -> u32 {
@@ -579,6 +579,13 @@ impl Walker {
     /// goal, adds in-place steps (for at most `plan_timeout` after the last valid plan), then
     /// brings the feet together. Returns true when the pattern changed.
     pub fn tick(&mut self, now: f64, joints: &JointsCheck) -> bool {
+        self.tick_ahead(now, STALE_DECISION, joints)
+    }
+
+    /// [`Walker::tick`] by a caller whose next tick may come as much as `within` s later (a
+    /// gait that decides at the end of what it streamed, which moves a chunk at a time): the
+    /// step that will have started by then is decided now, while it can still change.
+    pub fn tick_ahead(&mut self, now: f64, within: f64, joints: &JointsCheck) -> bool {
         if self.stopped {
             return false;
         }
@@ -596,7 +603,7 @@ impl Walker {
                 .iter()
                 .find(|s| s.start > t)
                 .is_some_and(|s| {
-                    s.start <= t + STALE_DECISION
+                    s.start <= t + within.max(STALE_DECISION)
                         && !s.footstep.padding
                         && s.footstep.number > self.last_echo + i64::from(self.cfg.steps_per_plan)
                 });

@@ -5,8 +5,10 @@
 mod common;
 
 use common::{generator, standing, straight};
+use std::collections::BTreeMap;
 use stride_gait::pattern::{Kind, Pattern};
-use stride_gait::timeline::{Footstep, Side};
+
+use stride_gait::timeline::{Footstep, Side, Step};
 use stride_gait::walker::{Plan, Verdict, Walker, WalkerConfig};
 use stride_gait::GaitError;
 
@@ -279,29 +281,16 @@ fn a_lost_planner_stops_the_robots_progress_within_a_step() {
         }
     }
     // No plan from here: walk on for a while. Each step as it started.
-    let mut started = std::collections::BTreeMap::new();
+    let mut started = BTreeMap::new();
     let end = t + 15.0;
     while t < end {
         t += 0.01;
         w.tick(t, &any);
-        for s in &w.pattern().timeline.steps {
-            if s.start <= t {
-                started
-                    .entry(s.footstep.number)
-                    .or_insert_with(|| s.clone());
-            }
-        }
+        note_started(&w, t, &mut started);
     }
     // The last plan (echo 2) gave steps 3 to 6: step 3 walked (the foremost foot ahead),
     // step 4 stops the walk, then the rear foot is brought beside it and only in place.
-    let mut front = f64::NEG_INFINITY;
-    let mut forward = vec![];
-    for s in started.values() {
-        if s.footstep.place[0] > front + 1e-9 && s.footstep.number > 0 {
-            forward.push(s.footstep.number);
-        }
-        front = front.max(s.footstep.place[0]).max(s.from[0]);
-    }
+    let forward = forward_steps(&started);
     assert_eq!(forward.last(), Some(&4), "{forward:?}");
     let in_place = started.values().filter(|s| s.footstep.padding).count();
     assert!(in_place >= 3, "{started:?}");
@@ -472,6 +461,7 @@ fn the_controller_makes_only_the_newest_of_the_plans_for_its_step_into_a_pattern
         walker: w,
         joints,
         switch_ahead: WalkerConfig::default().switch_ahead,
+        decide_within: 0.2,
     };
     let t = 0.0;
     let echo = c.walker.wanted_echo(c.switch_time(t, None)).unwrap();
@@ -493,4 +483,86 @@ fn the_controller_makes_only_the_newest_of_the_plans_for_its_step_into_a_pattern
         .map(|s| s.footstep.number)
         .max();
     assert_eq!(last, Some(echo + 6));
+}
+
+/// The last step a lost planner's walk puts forward, with the walker decided on at the end of
+/// what a gait has streamed, which moves `chunk` s at a time (`tick_ahead`: the walker is
+/// told how far its next decision may be), plans coming for the step under way at the switch
+/// until step `last_echo`, none after.
+fn last_forward_step(chunk: f64, last_echo: i64, ahead: Option<f64>) -> i64 {
+    let (l, r) = standing();
+    let (lookahead, switch) = (0.3, 0.35);
+    let cfg = WalkerConfig {
+        plan_timeout: 30.0,
+        switch_ahead: switch,
+        ..WalkerConfig::default()
+    };
+    let mut w = Walker::new(generator(Kind::Preview), cfg, 0.0, l, r, 0).unwrap();
+    let p = plan_from(&w, 0.0, 0, 8, 0);
+    assert_eq!(w.on_plan(&p, 0.0, &ok, &any), Verdict::Taken(1));
+    let (mut t, mut echo) = (0.0, 0);
+    let mut started = BTreeMap::new();
+    while t < 20.0 {
+        t += 0.01;
+        let stream_end = ((t + lookahead) / chunk).ceil() * chunk;
+        let at = stream_end - switch + 1e-7;
+        if let Some(e) = w.wanted_echo(at).filter(|e| *e > echo && *e <= last_echo) {
+            echo = e;
+            let p = plan_from(&w, at, e, 8, 0);
+            assert!(matches!(w.on_plan(&p, at, &ok, &any), Verdict::Taken(_)));
+        }
+        match ahead {
+            Some(a) => w.tick_ahead(at, a, &any),
+            None => w.tick(at, &any),
+        };
+        note_started(&w, t, &mut started);
+    }
+    forward_steps(&started).last().copied().unwrap_or(0)
+}
+
+/// Notes each step of the walker's pattern as it stood when the step started.
+fn note_started(w: &Walker, t: f64, started: &mut BTreeMap<i64, Step>) {
+    for s in &w.pattern().timeline.steps {
+        if s.start <= t {
+            started
+                .entry(s.footstep.number)
+                .or_insert_with(|| s.clone());
+        }
+    }
+}
+
+/// The steps that put a foot ahead of both feet, in order.
+fn forward_steps(started: &BTreeMap<i64, Step>) -> Vec<i64> {
+    let mut front = f64::NEG_INFINITY;
+    let mut forward = vec![];
+    for s in started.values() {
+        if s.footstep.place[0] > front + 1e-9 && s.footstep.number > 0 {
+            forward.push(s.footstep.number);
+        }
+        front = front.max(s.footstep.place[0]).max(s.from[0]);
+    }
+    forward
+}
+
+/// A lost planner on the split profile: the robot put a plan's step forward once more than
+/// the walker's rule when the gait's stream had moved past the 0.1 s before the stopping
+/// step's start in one chunk (0.2 s): the decision to stop was never taken for that step,
+/// and the robot walked the next one too (five touch-downs forward after the last plan, not
+/// four). Told how far its next decision may be, the walker stops with the same step
+/// however the stream moves.
+#[test]
+fn a_lost_planner_stops_the_walk_at_the_same_step_whatever_chunks_the_stream_moves_in() {
+    // The last plan echoes step 5: step 6 walked, step 7 stops the walk.
+    for chunk in [0.01, 0.1, 0.2, 0.25, 0.3] {
+        assert_eq!(
+            last_forward_step(chunk, 5, Some(chunk)),
+            7,
+            "chunks of {chunk} s"
+        );
+    }
+    // Without the chunk, a stream that moves further than the decision window skips it.
+    let skipped = [0.2, 0.25, 0.3]
+        .iter()
+        .any(|&c| last_forward_step(c, 5, None) != 7);
+    assert!(skipped, "the defect this guards is not reproduced");
 }
