@@ -139,8 +139,9 @@ fn a_flood_from_lcm_is_dropped_and_counted_never_sent_late_and_the_gateway_answe
     assert!(st.success(), "{out}");
     assert!(out.contains("dropped"), "{out}");
     // Nothing was sent late: by the gateway's log of the wire, every flood frame went out
-    // within its age bound of being published (with as much again for LCM's delivery and the
-    // scheduler; sent in arrival order, the flood's last frames would have waited seconds).
+    // within its age bound of its publication, the stamp it carries (with as much again for
+    // its way to the dongle; sent in arrival order, the flood's last frames would have waited
+    // seconds).
     let log = std::fs::read_to_string(&dump).unwrap();
     let mut logged = 0;
     let mut worst = 0;

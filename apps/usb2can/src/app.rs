@@ -109,14 +109,15 @@ impl GatewayApp {
         let sub = node.lcm().subscribe(
             &tx_channel(&cli.bus_name),
             move |info: &lcm::RecvInfo<'_>, m: CanFrameBatchT| {
-                // A frame's age counts from when liblcm received its batch.
+                // A frame's age counts from when liblcm received its batch, or from its
+                // sender's stamp before that.
                 let waited = Duration::from_micros(
                     now_utime().saturating_sub(info.recv_utime).max(0) as u64,
                 );
                 let arrived = Instant::now()
                     .checked_sub(waited)
                     .unwrap_or_else(Instant::now);
-                let bad = lock(&g).take(&m.frames, arrived);
+                let bad = lock(&g).take(&m.frames, arrived, info.recv_utime);
                 refused_log.log(
                     bad.iter()
                         .map(|why| Note::Warn(format!("frame refused: {why}"))),

@@ -137,6 +137,24 @@ pub enum TurnEnd {
     Blocked,
 }
 
+/// How long before its receipt (`received_utime`) a frame stamped `utime` was sent, both µs
+/// on the wall clock: its stamp is taken when it is at most [`STAMP_TRUSTED`] before the
+/// receipt (the sender's clock, the same computer's or one synchronised with it); a stamp
+/// after the receipt, or older (none: 0, a clock that is not synchronised), counts as sent
+/// at the receipt.
+pub fn sent_before(utime: i64, received_utime: i64) -> Duration {
+    let waited = received_utime.saturating_sub(utime);
+    if (0..=STAMP_TRUSTED.as_micros() as i64).contains(&waited) {
+        Duration::from_micros(waited as u64)
+    } else {
+        Duration::ZERO
+    }
+}
+
+/// How far before its receipt a frame's stamp is still taken for its sending (beyond: a
+/// clock not synchronised with this one).
+pub const STAMP_TRUSTED: Duration = Duration::from_secs(10);
+
 /// What a turn of sending did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Turn {
@@ -171,14 +189,24 @@ impl Gateway {
         }
     }
 
-    /// Takes a batch's frames from LCM that arrived at `arrived`: each queued, or counted as
-    /// refused; returns why each refused element is no frame.
-    pub fn take(&mut self, frames: &[CanFrameT], arrived: Instant) -> Vec<BadFrame> {
+    /// Takes a batch's frames from LCM that liblcm received at `arrived` (`received_utime` on
+    /// the wall clock): each queued, or counted as refused; returns why each refused element
+    /// is no frame. A frame is as old as its sender's stamp says ([`sent_before`]): one that
+    /// waited for a gateway held up by its computer is not sent as if it were new.
+    pub fn take(
+        &mut self,
+        frames: &[CanFrameT],
+        arrived: Instant,
+        received_utime: i64,
+    ) -> Vec<BadFrame> {
         let mut bad = Vec::new();
         for e in frames {
             match msg_to_frame(e) {
                 Ok(f) => {
-                    self.queue.push(f, arrived, &mut self.stats);
+                    let since = arrived
+                        .checked_sub(sent_before(e.utime, received_utime))
+                        .unwrap_or(arrived);
+                    self.queue.push(f, since, &mut self.stats);
                 }
                 Err(why) => {
                     self.stats.invalid += 1;
@@ -373,7 +401,7 @@ mod tests {
         let mut bad = stride_can_lcm::frame_to_msg(&frame(7), 0);
         bad.dlc = 9;
         let good = stride_can_lcm::frame_to_msg(&frame(8), 0);
-        assert_eq!(g.take(&[good, bad], Instant::now()).len(), 1);
+        assert_eq!(g.take(&[good, bad], Instant::now(), 0).len(), 1);
         assert_eq!((g.queue.len(), g.stats.invalid), (1, 1));
     }
 
@@ -419,5 +447,42 @@ mod tests {
         );
         assert!(s.summary(&GatewayStats::default(), 1.0).contains("2 stale"));
         assert_eq!(status_channel("left_leg"), "CAN_LEFT_LEG_STATUS");
+    }
+
+    /// A stress run: a gateway held up by its loaded computer read a flood's frames 0.6 s
+    /// after they were published and sent them as new (630 ms after their publication,
+    /// against an age bound of 100 ms). A frame is as old as its sender's stamp.
+    #[test]
+    fn a_frame_that_waited_for_the_gateway_is_as_old_as_its_senders_stamp() {
+        let mut g = Gateway::new(SendQueue::new(100, Duration::from_millis(100)));
+        let t0 = Instant::now();
+        let received = 1_000_000_000;
+        let stamped = |utime: i64| {
+            let mut m = stride_can_lcm::frame_to_msg(&frame(0), utime);
+            m.utime = utime;
+            m
+        };
+        let frames = [
+            stamped(received - 600_000), // waited 0.6 s before the gateway read it: stale
+            stamped(received - 20_000),  // 20 ms: goes
+            stamped(0),                  // no stamp: as old as its receipt
+            stamped(received + 5_000),   // a clock ahead: as old as its receipt
+            stamped(received - 60_000_000), // a clock a minute behind: likewise
+        ];
+        assert!(g.take(&frames, t0, received).is_empty());
+        let mut n = 0;
+        while g
+            .queue
+            .next(t0 + Duration::from_millis(50), &mut g.stats)
+            .is_some()
+        {
+            g.queue.sent();
+            n += 1;
+        }
+        assert_eq!((n, g.stats.dropped_stale), (4, 1));
+        assert_eq!(
+            sent_before(received - 20_000, received),
+            Duration::from_millis(20)
+        );
     }
 }
