@@ -1016,7 +1016,7 @@ impl Gait {
                 ..
             },
             Some(cfg),
-        ) = (&self.body, &self.cfg.goal)
+        ) = (&mut self.body, &self.cfg.goal)
         else {
             return;
         };
@@ -1042,8 +1042,9 @@ impl Gait {
         let feet = feet.map(|f| self.anchor.to_world(f));
         if at_goal(&feet, &p.goal, cfg) {
             // There once the step under way lands: no more requests; the walk's last plan
-            // ends it standing (its remaining steps in place are the planner's padding).
+            // ends it standing (its closing step, then the planner's padding in place).
             if !walker.standing(t) {
+                walker.finish_plan();
                 return;
             }
             tracing::info!("goal ({}, {}) reached", short(p.goal.x), short(p.goal.y));

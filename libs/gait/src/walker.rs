@@ -575,6 +575,14 @@ impl Walker {
         self.note = "resumed: waiting for a plan".into();
     }
 
+    /// No newer plan will come: the robot is at the goal once the steps already fixed land
+    /// (its caller judged so, and asks no more). The taken plan's remaining steps (the closing
+    /// step, its padding in place) are walked to their end and the robot stands, not stopped
+    /// as a lost planner's walk is, then kept stepping in place for `plan_timeout`.
+    pub fn finish_plan(&mut self) {
+        self.following = false;
+    }
+
     /// Keeps the walk going at `now`: when the taken steps are about to run out before the
     /// goal, adds in-place steps (for at most `plan_timeout` after the last valid plan), then
     /// brings the feet together. Returns true when the pattern changed.
