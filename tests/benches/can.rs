@@ -75,6 +75,18 @@ impl CanBus for Noting {
     fn recv(&mut self, deadline: Instant) -> Result<CanFrame, BusError> {
         self.inner.recv(deadline)
     }
+    fn try_recv(&mut self) -> Result<Option<CanFrame>, BusError> {
+        self.inner.try_recv()
+    }
+    fn now(&self) -> Instant {
+        self.inner.now()
+    }
+    fn utime(&self) -> i64 {
+        self.inner.utime()
+    }
+    fn wait_until(&mut self, t: Instant) {
+        self.inner.wait_until(t)
+    }
 }
 
 fn joint(i: u8) -> JointConfig {

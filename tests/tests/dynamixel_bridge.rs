@@ -227,3 +227,31 @@ fn the_bridge_reconnects_when_its_port_returns_and_does_not_flood_its_log() {
     assert!(st.success());
     drop(rig);
 }
+
+/// A stress run: the hexapod fell when the bridge refused a set-point of the gait's at
+/// 6.04 rad/s ("velocity beyond 6"): the gait allowed its servos 6.178 rad/s (the AX-12A's
+/// top speed), the bridge 6 ("about" the same). What the gait sends must be what the bridge
+/// takes: both now hold the servo's top speed.
+#[test]
+fn the_hexapod_gait_asks_no_servo_for_more_speed_than_the_bridge_takes() {
+    let read = |f: &str| -> toml::Table {
+        toml::from_str(
+            &std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(f))
+                .unwrap(),
+        )
+        .unwrap()
+    };
+    let gait = read("config/gait-hexapod.toml");
+    let max_speed = gait["hexapod"]["max_speed"].as_float().unwrap();
+    let bridge = read("config/robots/hexapod-dynamixel.toml");
+    let servos = bridge["servo"].as_array().unwrap();
+    assert_eq!(servos.len(), 18);
+    for s in servos {
+        let v = s["max_velocity"].as_float().unwrap();
+        assert!(
+            max_speed <= v,
+            "the gait's {max_speed} rad/s beyond {}'s {v}",
+            s["name"]
+        );
+    }
+}

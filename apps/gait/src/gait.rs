@@ -1044,7 +1044,7 @@ impl Gait {
             // There once the step under way lands: no more requests; the walk's last plan
             // ends it standing (its closing step, then the planner's padding in place).
             if !walker.standing(t) {
-                walker.finish_plan();
+                let _ = walker.finish_plan();
                 return;
             }
             tracing::info!("goal ({}, {}) reached", short(p.goal.x), short(p.goal.y));

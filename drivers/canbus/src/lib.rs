@@ -299,18 +299,25 @@ impl MemBus {
             return;
         }
         while self.now() < t {
-            if !self.step_to(t) {
-                return;
-            }
+            self.step_to(t);
         }
     }
 
     /// One event of the modelled time: the devices due now are stepped, then the time moves
     /// to the next event (a frame's arrival, a device's step) or `limit`, whichever is first.
-    /// False when it cannot move (a device waiting on the bus from its own step).
-    fn step_to(&self, limit: Instant) -> bool {
-        let Ok(mut devices) = self.devices.try_lock() else {
-            return false;
+    ///
+    /// # Panics
+    ///
+    /// When the bus is waited on while its devices step: from a device's own step, or from a
+    /// second thread (one thread drives a modelled bus; its time could not move otherwise).
+    fn step_to(&self, limit: Instant) {
+        let mut devices = match self.devices.try_lock() {
+            Ok(d) => d,
+            Err(std::sync::TryLockError::Poisoned(p)) => p.into_inner(),
+            Err(std::sync::TryLockError::WouldBlock) => panic!(
+                "a modelled CAN bus was waited on while its devices stepped (from a device's \
+                 step, or a second thread): one thread drives a modelled bus"
+            ),
         };
         let now = self.now();
         for a in devices.iter_mut() {
@@ -329,10 +336,11 @@ impl MemBus {
             }
         }
         let mut g = self.lock();
+        // Each inbox is in order of arrival: the first still to come, past those due.
         let arrival = g
             .inboxes
             .iter()
-            .filter_map(|q| q.iter().map(|d| d.at).find(|at| *at > now))
+            .filter_map(|q| q.get(q.partition_point(|d| d.at <= now)).map(|d| d.at))
             .min();
         let next = devices
             .iter()
@@ -342,7 +350,6 @@ impl MemBus {
         if next > now {
             g.modelled = Some(next);
         }
-        true
     }
 }
 
@@ -425,9 +432,7 @@ impl CanBus for MemNode {
                 _ if now >= deadline => return Err(BusError::Timeout),
                 _ if modelled => {
                     drop(g);
-                    if !self.bus.step_to(deadline) {
-                        return Err(BusError::Timeout);
-                    }
+                    self.bus.step_to(deadline);
                     g = self.bus.lock();
                 }
                 Some(d) => {

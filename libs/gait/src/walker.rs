@@ -169,6 +169,10 @@ pub struct Walker {
     last_echo: i64,
     /// The goal was reached (the taken plan ended in padding).
     at_goal: bool,
+    /// The taken plan ends the walk within the steps checked with it (it reaches the goal,
+    /// and its last real step is the one a lost planner's walk would stop with): a caller
+    /// that asks no more may have it walked to its end ([`Walker::finish_plan`]).
+    ends_walk: bool,
     /// The pattern's steps ahead are a plan's (not the walker's own stand): they are walked
     /// only `steps_per_plan` beyond the last plan's echo.
     following: bool,
@@ -208,6 +212,7 @@ impl Walker {
             counters: Counters::default(),
             last_valid: f64::NEG_INFINITY,
             at_goal: true,
+            ends_walk: false,
             following: false,
             stopped: false,
             note: "standing".into(),
@@ -475,6 +480,7 @@ impl Walker {
         // touch-down. A plan's later steps give way to the next plan before they play.
         let walked = self.cfg.steps_per_plan as usize;
         let stop_step = steps.get(walked).map(|f| f.number);
+        let ends_walk = at_goal && steps.len() <= walked + 1;
         steps.truncate(walked + 1 + self.previewed_steps());
         kept.extend(steps);
         match self.replace_until(now, kept, stop_step, joints) {
@@ -483,6 +489,7 @@ impl Walker {
                 self.last_valid = now;
                 self.last_echo = plan.echo;
                 self.at_goal = at_goal;
+                self.ends_walk = ends_walk;
                 self.following = true;
                 self.last_number = self.last_number.max(plan.echo);
                 self.note = format!("plan for step {} taken", plan.echo);
@@ -576,11 +583,16 @@ impl Walker {
     }
 
     /// No newer plan will come: the robot is at the goal once the steps already fixed land
-    /// (its caller judged so, and asks no more). The taken plan's remaining steps (the closing
-    /// step, its padding in place) are walked to their end and the robot stands, not stopped
-    /// as a lost planner's walk is, then kept stepping in place for `plan_timeout`.
-    pub fn finish_plan(&mut self) {
-        self.following = false;
+    /// (its caller judged so, and asks no more). A taken plan that ends the walk within the
+    /// steps checked with it (it reaches the goal, its last real step no further than the one
+    /// a lost planner's walk stops with) is walked to its end, its padding in place, and the
+    /// robot stands, not kept stepping in place for `plan_timeout`; any other plan is
+    /// stopped as a lost planner's is. Returns whether the plan is walked to its end.
+    pub fn finish_plan(&mut self) -> bool {
+        if self.ends_walk {
+            self.following = false;
+        }
+        self.ends_walk
     }
 
     /// Keeps the walk going at `now`: when the taken steps are about to run out before the

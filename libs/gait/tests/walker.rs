@@ -331,28 +331,35 @@ fn a_plan_to_the_goal_is_not_walked_to_its_end_when_no_newer_plan_comes() {
 /// The 1 m closed-loop walk took 13 steps, not at most 12, once a lost planner's stop was
 /// decided in time: at the goal the gait asks no more, and the walker stopped the last plan
 /// as a lost planner's and stepped in place for the plan timeout before it stood. Told that
-/// no newer plan will come, it walks the last plan to its end and stands.
+/// no newer plan will come, it walks a plan that ends the walk to its end and stands; a plan
+/// with more steps than that is still stopped as a lost planner's.
 #[test]
 fn at_the_goal_the_last_plan_is_walked_to_its_end_and_the_robot_stands_without_stepping_in_place() {
-    let mut w = walker();
-    // Three steps, then two in place: it reaches the goal.
-    let p = plan_from(&w, 0.0, 0, 5, 2);
-    assert_eq!(w.on_plan(&p, 0.0, &ok, &any), Verdict::Taken(1));
-    w.finish_plan();
-    let mut t = 0.0;
-    while t < 20.0 {
-        w.tick(t, &any);
-        t += 0.01;
-    }
-    assert!(w.standing(t));
-    let feet = w.pattern().timeline.feet_end;
-    // The third step's foot at 0.45 m (0.15 m past the other each step).
-    assert!(
-        (feet[0][0].max(feet[1][0]) - 0.45).abs() < 1e-9,
-        "not walked to the plan's end: {feet:?}"
-    );
-    let c = w.counters();
+    let run = |real: usize| {
+        let mut w = walker();
+        // `real` steps, then two in place: it reaches the goal.
+        let p = plan_from(&w, 0.0, 0, real + 2, 2);
+        assert_eq!(w.on_plan(&p, 0.0, &ok, &any), Verdict::Taken(1));
+        let finished = w.finish_plan();
+        let mut t = 0.0;
+        while t < 20.0 {
+            w.tick(t, &any);
+            t += 0.01;
+        }
+        assert!(w.standing(t));
+        let feet = w.pattern().timeline.feet_end;
+        (finished, feet[0][0].max(feet[1][0]), w.counters())
+    };
+    // Two steps (0.15 m past the other foot each): walked, and it stands.
+    let (finished, front, c) = run(2);
+    assert!(finished);
+    assert!((front - 0.3).abs() < 1e-9, "{front}");
     assert_eq!((c.in_place, c.stops), (0, 0), "{c:?}");
+    // Three: the third is beyond what was checked with the plan; stopped with the second.
+    let (finished, front, c) = run(3);
+    assert!(!finished);
+    assert!((front - 0.3).abs() < 1e-9, "{front}");
+    assert!(c.in_place > 0 && c.stops == 1, "{c:?}");
 }
 
 #[test]
