@@ -96,9 +96,18 @@ pub struct PatternSection {
     /// pelvis centre's.
     #[serde(default = "yes")]
     pub whole_body: bool,
+    /// Preview control with the whole body's ZMP (Kajita's two-stage preview control, the
+    /// second stage made this many times): the legs' own motion taken off the ZMP reference,
+    /// so that the joints' whole-body ZMP keeps to the plan; 0: the cart-table model alone.
+    #[serde(default = "multibody_passes")]
+    pub multibody_passes: usize,
     /// How the COM height is chosen.
     #[serde(default)]
     pub height: HeightConfig,
+}
+
+fn multibody_passes() -> usize {
+    2
 }
 
 fn preview_kind() -> Kind {
@@ -527,7 +536,10 @@ pub fn archie_gait(
         ..p.clone()
     }
     .config(legs.z_c, sole);
-    let gen = Generator::new(pattern).map_err(|e| e.to_string())?;
+    let mut gen = Generator::new(pattern).map_err(|e| e.to_string())?;
+    if p.multibody_passes > 0 {
+        gen = gen.with_body(std::sync::Arc::new(legs.clone()), p.multibody_passes);
+    }
     Ok((legs, gen))
 }
 

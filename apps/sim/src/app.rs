@@ -22,8 +22,8 @@ use crate::{Robot, Sim, SimConfig};
 /// body's true pose (SIM_POSE), a noisy odometry and IMU, perfect perception of the scene with
 /// noise and delay (the obstacles and an elevation map around the robot, on the mapper's
 /// channels) and a report (SIM_REPORT): the feet, the smallest ZMP margin (the hexapod's:
-/// static) and clearance, collisions with an obstacle, falls (the cart-table ZMP of the whole
-/// robot, or the hexapod's body centre, outside the support polygon) and joints at their
+/// static) and clearance, collisions with an obstacle, falls (the whole body's ZMP of its point
+/// masses, or the hexapod's body centre, outside the support polygon) and joints at their
 /// limits. The same seed gives the same noise.
 ///
 /// See config/sim-archie.toml and config/sim-hexapod.toml.

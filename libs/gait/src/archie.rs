@@ -16,7 +16,7 @@ use stride_kinematics::archie::{self, ArchieConfig, Leg, LegPoints, Q};
 use stride_kinematics::math::{at, yawed, Frame, Pose, V3};
 use stride_limits::curve::{beyond, hermite_within, Bounds, Cubic};
 
-use crate::pattern::Pattern;
+use crate::pattern::{Body, Pattern};
 use crate::support::P2;
 use crate::swing::Place;
 use crate::GaitError;
@@ -66,6 +66,14 @@ pub fn default_z_c(robot: &ArchieConfig, h: &HeightConfig, zmp_ahead: f64) -> f6
     };
     archie::max_pelvis_height(&robot.links, h.step_length, h.stance_width, ahead, fits) - h.margin
 }
+
+/// Between the rows whose whole-body ZMP [`Body::zmp_offset`] works out, s: the offset
+/// changes over a swing's lift-off and landing (a tenth of a second and more); rows every
+/// 10 ms moved the ZMP it gives by under half a millimetre, at twice the cost.
+pub const OFFSET_PERIOD: f64 = 0.02;
+
+/// The joints' first guess for a pattern's first row: the knees bent.
+const REST: [Q; 2] = [[0.0, 0.0, 0.0, 0.3, -0.15, 0.0]; 2];
 
 /// One leg's rows.
 #[derive(Debug, Clone, PartialEq)]
@@ -217,34 +225,46 @@ impl ArchieGait {
 
     /// The whole robot's centre of mass for a pelvis pose and the legs' points.
     fn com_of_points(&self, pelvis: &Pose, points: &[LegPoints; 2]) -> V3 {
-        let m = &self.robot.mass;
         let mut sum = [0.0; 3];
-        let mut add = |mass: f64, p: V3| {
+        for (mass, p) in self.point_masses(pelvis, points) {
             for d in 0..3 {
                 sum[d] += mass * p[d];
             }
-        };
-        add(m.pelvis, pelvis.position());
-        for p in points {
-            let w = |a: &V3| pelvis.apply(a);
-            let mid = |a: &V3, b: &V3| {
-                w(&[
-                    (a[0] + b[0]) / 2.0,
-                    (a[1] + b[1]) / 2.0,
-                    (a[2] + b[2]) / 2.0,
-                ])
-            };
-            add(m.thigh, mid(&p[0], &p[1]));
-            add(m.shank, mid(&p[1], &p[2]));
-            add(m.foot, w(&p[3]));
         }
-        let total = m.total();
+        let total = self.robot.mass.total();
         sum.map(|v| v / total)
+    }
+
+    /// The robot's point masses (world): the pelvis's at its centre, a thigh's and a shank's
+    /// at their middles, a foot's at the ankle roll axis.
+    fn point_masses(&self, pelvis: &Pose, points: &[LegPoints; 2]) -> [(f64, V3); 7] {
+        let m = &self.robot.mass;
+        let w = |a: &V3| pelvis.apply(a);
+        let mid = |a: &V3, b: &V3| {
+            w(&[
+                (a[0] + b[0]) / 2.0,
+                (a[1] + b[1]) / 2.0,
+                (a[2] + b[2]) / 2.0,
+            ])
+        };
+        let [l, r] = points;
+        [
+            (m.pelvis, pelvis.position()),
+            (m.thigh, mid(&l[0], &l[1])),
+            (m.shank, mid(&l[1], &l[2])),
+            (m.foot, w(&l[3])),
+            (m.thigh, mid(&r[0], &r[1])),
+            (m.shank, mid(&r[1], &r[2])),
+            (m.foot, w(&r[3])),
+        ]
     }
 
     /// The pelvis and joints that put the COM at `com` (world) with the feet at `feet`: the
     /// pelvis centre there, or (whole body) the pelvis moved until the point masses' centre
-    /// is there to 0.01 mm (`offset`: the pelvis's place less the COM's, kept from row to row).
+    /// is there to 0.3 µm (`offset`: the pelvis's place less the COM's, kept from row to
+    /// row, its first guess a cubic through the last four rows'): the rows' second
+    /// differences, and so their ZMP, carry that error over a row period squared (0.01 mm
+    /// moved the ZMP by up to 2 cm at 10 ms; 0.3 µm by about half a millimetre).
     fn place(
         &self,
         com: V3,
@@ -252,11 +272,12 @@ impl ArchieGait {
         feet: &[Place; 2],
         near: &[Q; 2],
         offset: &mut V3,
-    ) -> Result<(Pose, [Q; 2]), GaitError> {
+    ) -> Result<(Pose, [Q; 2], [LegPoints; 2]), GaitError> {
         if !self.whole_body {
             let pelvis = yawed(com, yaw);
-            let q = self.solve(&pelvis, feet, near)?;
-            return Ok((pelvis, q));
+            let (q, points) = self.reach_points(&pelvis, feet, near)?;
+            self.check_limits(&q)?;
+            return Ok((pelvis, q, points));
         }
         let mut q = *near;
         for _ in 0..20 {
@@ -273,9 +294,9 @@ impl ArchieGait {
             for d in 0..3 {
                 offset[d] += err[d] / self.gain[d];
             }
-            if err.iter().all(|e| e.abs() < 1e-5) {
+            if err.iter().all(|e| e.abs() < 3e-7) {
                 self.check_limits(&q)?;
-                return Ok((pelvis, q));
+                return Ok((pelvis, q, points));
             }
         }
         Err(GaitError::Plan(
@@ -343,6 +364,37 @@ impl ArchieGait {
         ([c[0], c[1], self.z_c + ground], sy.atan2(cy))
     }
 
+    /// The pelvis, joints and legs' points of sample `k`'s row: the COM placed from the
+    /// offset that went on as it went over the last four rows (`seen`, newest first: a
+    /// cubic through them; before there are four, the last one found: a pattern that
+    /// starts mid-walk starts from an offset unlike the standing one, and extrapolating from
+    /// that would throw the first guess far off), `near` the joints' first guess.
+    fn place_row(
+        &self,
+        pat: &Pattern,
+        k: usize,
+        near: &[Q; 2],
+        offset: &mut V3,
+        seen: &mut Vec<V3>,
+    ) -> Result<(Pose, [Q; 2], [LegPoints; 2]), GaitError> {
+        let s = &pat.samples[k];
+        let feet = [s.feet[0][0], s.feet[1][0]];
+        let (com, yaw) = self.com_at(pat, k);
+        if let [a, b, c, e] = seen[..] {
+            for d in 0..3 {
+                offset[d] = 4.0 * a[d] - 6.0 * b[d] + 4.0 * c[d] - e[d];
+            }
+        } else if let Some(a) = seen.first() {
+            *offset = *a;
+        }
+        let placed = self
+            .place(com, yaw, &feet, near, offset)
+            .map_err(|e| GaitError::Plan(format!("at {:.3} s: {e}", s.t - pat.timeline.start)))?;
+        seen.insert(0, *offset);
+        seen.truncate(4);
+        Ok(placed)
+    }
+
     /// The joint trajectories of a pattern, checked (see the module).
     pub fn joints(&self, pat: &Pattern) -> Result<JointPlan, GaitError> {
         Ok(self.joints_until(pat, f64::INFINITY)?.plan)
@@ -376,9 +428,9 @@ impl ArchieGait {
                 times: Vec::with_capacity(n),
                 pelvis: Vec::with_capacity(n),
                 pos: Vec::with_capacity(n),
-                near: [[0.0, 0.0, 0.0, 0.3, -0.15, 0.0]; 2],
+                near: REST,
                 offset: self.offset,
-                seen: Vec::with_capacity(4),
+                seen: Vec::with_capacity(5),
             },
         };
         self.extend(pat, &mut j, until)?;
@@ -417,34 +469,16 @@ impl ArchieGait {
         let saved = (m.near, m.offset, m.seen.clone());
         for i in m.pos.len()..need {
             let k = m.ks[i];
-            let s = &pat.samples[k];
-            let feet = [s.feet[0][0], s.feet[1][0]];
-            let (com, yaw) = self.com_at(pat, k);
-            // The offset goes on as it went over the last three rows (a parabola through
-            // them); before there are three, it is the last one found (a pattern that starts
-            // mid-walk starts from an offset unlike the standing one: extrapolating from that
-            // would throw the first guess far off).
-            if let [a, b, c] = m.seen[..] {
-                for d in 0..3 {
-                    m.offset[d] = 3.0 * a[d] - 3.0 * b[d] + c[d];
-                }
-            } else if let Some(a) = m.seen.first() {
-                m.offset = *a;
-            }
-            let placed = self.place(com, yaw, &feet, &m.near, &mut m.offset);
-            let (pelvis, q) = match placed {
+            let placed = self.place_row(pat, k, &m.near, &mut m.offset, &mut m.seen);
+            let (pelvis, q, _) = match placed {
                 Ok(r) => r,
                 Err(e) => {
                     (m.near, m.offset, m.seen) = saved;
                     undo(m, &mut j.plan);
-                    return Err(GaitError::Plan(format!(
-                        "at {:.3} s: {e}",
-                        s.t - pat.timeline.start
-                    )));
+                    return Err(e);
                 }
             };
-            m.seen.insert(0, m.offset);
-            m.seen.truncate(3);
+            let s = &pat.samples[k];
             m.near = q;
             m.pos.push(q);
             m.pelvis.push(pelvis);
@@ -533,57 +567,58 @@ impl ArchieGait {
         }
         Ok(())
     }
+}
 
-    /// The multibody ZMP of a joint plan: the point masses of the robot file placed by
-    /// forward kinematics (the pelvis's at its centre, a thigh's and a shank's at their
-    /// middles, a foot's at the ankle roll axis), their accelerations by second differences,
-    /// and p = Σ m (x (z̈ + g) − z ẍ) / Σ m (z̈ + g) (the links' own rotational inertia left
-    /// out). One point a row, the first and last rows' at rest.
-    pub fn multibody_zmp(&self, plan: &JointPlan, g: f64) -> Vec<P2> {
-        let m = &self.robot.mass;
-        let masses: Vec<Vec<(f64, V3)>> = (0..plan.times.len())
-            .map(|i| {
-                let pelvis = plan.pelvis[i];
-                let mut pts = vec![(m.pelvis, pelvis.position())];
-                for (leg, rows) in [(Leg::Left, &plan.left), (Leg::Right, &plan.right)] {
-                    let (_, p) = archie::fk_points(&self.robot.links, leg, &rows.positions[i]);
-                    let w = |a: &V3| pelvis.apply(a);
-                    let mid = |a: &V3, b: &V3| {
-                        w(&[
-                            (a[0] + b[0]) / 2.0,
-                            (a[1] + b[1]) / 2.0,
-                            (a[2] + b[2]) / 2.0,
-                        ])
-                    };
-                    pts.push((m.thigh, mid(&p[0], &p[1])));
-                    pts.push((m.shank, mid(&p[1], &p[2])));
-                    pts.push((m.foot, w(&p[3])));
-                }
-                pts
-            })
-            .collect();
-        let n = masses.len();
-        (0..n)
-            .map(|i| {
-                let (mut num_x, mut num_y, mut den) = (0.0, 0.0, 0.0);
-                for (k, &(mass, p)) in masses[i].iter().enumerate() {
-                    let acc = if i == 0 || i + 1 == n {
-                        [0.0; 3]
-                    } else {
-                        let h1 = plan.times[i] - plan.times[i - 1];
-                        let h2 = plan.times[i + 1] - plan.times[i];
-                        let (a, b) = (masses[i - 1][k].1, masses[i + 1][k].1);
-                        std::array::from_fn(|d| {
-                            2.0 * ((b[d] - p[d]) / h2 - (p[d] - a[d]) / h1) / (h1 + h2)
-                        })
-                    };
-                    let w = mass * (acc[2] + g);
-                    num_x += p[0] * w - mass * p[2] * acc[0];
-                    num_y += p[1] * w - mass * p[2] * acc[1];
-                    den += w;
-                }
-                [num_x / den, num_y / den]
-            })
-            .collect()
+impl Body for ArchieGait {
+    /// Every row's point masses placed as the joints would put them ([`ArchieGait::place`],
+    /// unchecked against the joints' limits), their accelerations by second differences (the
+    /// end rows' those of their neighbours), and the whole body's ZMP
+    /// p = Σ m (x (z̈ + g) − z ẍ) / Σ m (z̈ + g) (the links' own rotational inertia left out),
+    /// less the cart-table ZMP, taken linearly between rows to the samples. The rows here are
+    /// 20 ms apart ([`OFFSET_PERIOD`]). Rows stop at the first the legs cannot take (the
+    /// joints' check refuses it), zero after.
+    fn zmp_offset(&self, pat: &Pattern, g: f64) -> Vec<P2> {
+        let mut out = vec![[0.0; 2]; pat.samples.len()];
+        let stride = ((OFFSET_PERIOD / pat.dt).round() as usize).max(1);
+        let (mut near, mut offset, mut seen) = (REST, self.offset, Vec::with_capacity(5));
+        let mut rows: Vec<(usize, [(f64, V3); 7])> = Vec::new();
+        for k in (0..pat.samples.len()).step_by(stride) {
+            let Ok((pelvis, q, points)) = self.place_row(pat, k, &near, &mut offset, &mut seen)
+            else {
+                break;
+            };
+            near = q;
+            rows.push((k, self.point_masses(&pelvis, &points)));
+        }
+        let n = rows.len();
+        if n < 3 {
+            return out;
+        }
+        let mut at_rows = Vec::with_capacity(n);
+        for i in 0..n {
+            let c = i.clamp(1, n - 2);
+            let t = |r: usize| pat.samples[rows[r].0].t;
+            let (h1, h2) = (t(c) - t(c - 1), t(c + 1) - t(c));
+            let (mut num_x, mut num_y, mut den) = (0.0, 0.0, 0.0);
+            for (m, &(mass, p)) in rows[i].1.iter().enumerate() {
+                let (a, b, q) = (rows[c - 1].1[m].1, rows[c + 1].1[m].1, rows[c].1[m].1);
+                let acc: V3 = std::array::from_fn(|d| {
+                    2.0 * ((b[d] - q[d]) / h2 - (q[d] - a[d]) / h1) / (h1 + h2)
+                });
+                let w = mass * (acc[2] + g);
+                num_x += p[0] * w - mass * p[2] * acc[0];
+                num_y += p[1] * w - mass * p[2] * acc[1];
+                den += w;
+            }
+            let cart = pat.samples[rows[i].0].zmp;
+            at_rows.push([num_x / den - cart[0], num_y / den - cart[1]]);
+        }
+        let last = rows[n - 1].0;
+        for (k, o) in out.iter_mut().enumerate().take(last + 1) {
+            let (i, f) = (k / stride, (k % stride) as f64 / stride as f64);
+            let b = at_rows[(i + 1).min(n - 1)];
+            *o = std::array::from_fn(|d| at_rows[i][d] * (1.0 - f) + b[d] * f);
+        }
+        out
     }
 }

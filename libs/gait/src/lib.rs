@@ -10,7 +10,7 @@
 //! - [`pattern`]: COM, ZMP and swing patterns from footsteps, one interface for both
 //!   generators, checked and stretched in time until the ZMP keeps its margin;
 //! - [`archie`]: Archie's joint trajectories from a pattern, checked against the joints'
-//!   limits, and the multibody ZMP they make;
+//!   limits, and the whole body's ZMP under a pattern (the second stage of preview control);
 //! - [`hexapod`]: the hexapod's wave and tripod gaits and its sensing lift, as servo goals
 //!   and moving speeds;
 //! - [`walker`]: the walk in step with a replanning planner (step numbers, late plans,

@@ -9,10 +9,14 @@
 //!   acceleration continuous) and brings it to rest between the feet.
 //!
 //! Every sample carries the cart-table ZMP p = x − (z_c / g) ẍ and its margin in the support
-//! polygon. [`plan`] stretches the time of a step whose margin falls below the bar, within
+//! polygon; with a [`Body`] ([`Generator::with_body`]), preview control takes the whole body's
+//! departure from the cart-table model off its ZMP reference (Kajita's two-stage preview
+//! control) and the samples carry the whole body's ZMP. [`plan`] stretches the time of a step whose margin falls below the bar, within
 //! [T_min, T_max], until it passes, else refuses the plan. [`Pattern::state_at`] gives the
 //! state a new pattern starts from, so that a plan replaced mid-walk continues the COM and
 //! the swing foot without a jump.
+
+use std::sync::Arc;
 
 use serde::Deserialize;
 
@@ -316,12 +320,22 @@ impl Pattern {
     }
 }
 
+/// The whole body under a pattern: where its ZMP falls from the cart-table ZMP of the
+/// pattern's COM (the legs' own accelerations, masses below and above the COM's height),
+/// which a generator with a body takes off its ZMP reference ([`Generator::with_body`]).
+pub trait Body: std::fmt::Debug + Send + Sync {
+    /// The whole body's ZMP less the pattern's cart-table ZMP at each of its samples, with
+    /// gravity `g`; zero past the last sample the body can take.
+    fn zmp_offset(&self, pat: &Pattern, g: f64) -> Vec<P2>;
+}
+
 /// The generator, built once for a COM height.
 #[derive(Debug, Clone)]
 pub struct Generator {
     cfg: PatternConfig,
     preview: Preview,
     pendulum: Pendulum,
+    body: Option<(Arc<dyn Body>, usize)>,
 }
 
 impl Generator {
@@ -358,7 +372,24 @@ impl Generator {
             cfg,
             preview,
             pendulum,
+            body: None,
         })
+    }
+
+    /// The generator with the whole body under its preview-control patterns (Kajita's
+    /// two-stage preview control, the second stage made again `passes` times): the body's
+    /// offset from the cart-table ZMP ([`Body::zmp_offset`]) of the last pattern made is taken
+    /// off the ZMP reference and the pattern made again, so that the whole body's ZMP, not the
+    /// cart's, follows the reference; the samples' ZMPs and margins are the whole body's. The
+    /// foot placement generator's pendulum is left as the thesis has it.
+    pub fn with_body(mut self, body: Arc<dyn Body>, passes: usize) -> Generator {
+        self.body = Some((body, passes));
+        self
+    }
+
+    /// The body under the patterns and its passes, if any.
+    pub fn body(&self) -> Option<&(Arc<dyn Body>, usize)> {
+        self.body.as_ref()
     }
 
     /// The parameters.
@@ -520,7 +551,25 @@ impl Generator {
         match self.cfg.generator {
             Kind::Preview => {
                 let tl = self.timeline(start, steps, durations)?;
-                Ok(self.preview_pattern(tl, start.com, start.jerk, Vec::new()))
+                let Some((body, passes)) = &self.body else {
+                    return Ok(self.preview_pattern(tl, start.com, start.jerk, Vec::new()));
+                };
+                let g = self.cfg.g;
+                let mut pat = self.preview_pattern(tl.clone(), start.com, start.jerk, Vec::new());
+                let mut offset = body.zmp_offset(&pat, g);
+                for _ in 0..*passes {
+                    pat = self.preview_pattern_until(
+                        tl.clone(),
+                        start.com,
+                        start.jerk,
+                        Vec::new(),
+                        f64::INFINITY,
+                        &offset,
+                    );
+                    offset = body.zmp_offset(&pat, g);
+                }
+                self.whole_body_zmp(&mut pat, &offset);
+                Ok(pat)
             }
             Kind::FootPlacement => self.placement_pattern(start, steps),
         }
@@ -538,6 +587,35 @@ impl Generator {
     ) -> Sample {
         let zmp = [self.preview.zmp(&com.x.x), self.preview.zmp(&com.y.x)];
         let (feet, phase) = cursor.at(t);
+        let margin = self.margin_of(tl, support, t, phase, &feet, zmp);
+        Sample {
+            t,
+            com,
+            zmp_ref: zmp_ref.unwrap_or_else(|| tl.zmp_ref(t)),
+            zmp,
+            feet,
+            phase,
+            margin,
+        }
+    }
+
+    /// A sample's ZMP's margin in its support polygon.
+    #[inline(always)]
+    fn margin(&self, tl: &Timeline, support: &mut Support, s: &Sample) -> f64 {
+        self.margin_of(tl, support, s.t, s.phase, &s.feet, s.zmp)
+    }
+
+    /// [`Generator::margin`] of a ZMP at `t` in a phase with the feet there.
+    #[inline(always)]
+    fn margin_of(
+        &self,
+        tl: &Timeline,
+        support: &mut Support,
+        t: f64,
+        phase: Phase,
+        feet: &[[Place; 3]; 2],
+        zmp: P2,
+    ) -> f64 {
         // The support polygon changes only with the phase: made once for each.
         let key = match phase {
             Phase::Single { step, .. } => (1, step),
@@ -560,15 +638,15 @@ impl Generator {
             support.edges = edges(&support.polygon);
             support.key = Some(key);
         }
-        Sample {
-            t,
-            com,
-            zmp_ref: zmp_ref.unwrap_or_else(|| tl.zmp_ref(t)),
-            zmp,
-            feet,
-            phase,
-            margin: inside_margin(&support.edges, zmp)
-                .unwrap_or_else(|| margin(&support.polygon, zmp)),
+        inside_margin(&support.edges, zmp).unwrap_or_else(|| margin(&support.polygon, zmp))
+    }
+
+    /// The samples' ZMPs moved by the body's offsets to the whole body's, and their margins.
+    fn whole_body_zmp(&self, pat: &mut Pattern, offset: &[P2]) {
+        let mut support = Support::default();
+        for (s, d) in pat.samples.iter_mut().zip(offset) {
+            s.zmp = [s.zmp[0] + d[0], s.zmp[1] + d[1]];
+            s.margin = self.margin(&pat.timeline, &mut support, s);
         }
     }
 
@@ -581,11 +659,12 @@ impl Generator {
         jerk: Option<[f64; 2]>,
         placed: Vec<(Footstep, P2)>,
     ) -> Pattern {
-        self.preview_pattern_until(tl, com, jerk, placed, f64::INFINITY)
+        self.preview_pattern_until(tl, com, jerk, placed, f64::INFINITY, &[])
     }
 
     /// [`Generator::preview_pattern`] sampled only up to the first sample at or after `until`
-    /// (the rest of the timeline still previewed).
+    /// (the rest of the timeline still previewed), `shift` taken off the ZMP reference the
+    /// controller tracks (sample by sample from the first; the samples keep the reference).
     fn preview_pattern_until(
         &self,
         tl: Timeline,
@@ -593,6 +672,7 @@ impl Generator {
         jerk: Option<[f64; 2]>,
         placed: Vec<(Footstep, P2)>,
         until: f64,
+        shift: &[P2],
     ) -> Pattern {
         let dt = self.cfg.preview.period;
         let whole = ((tl.end - tl.start) / dt).ceil() as usize;
@@ -603,17 +683,30 @@ impl Generator {
         };
         let n = self.preview.horizon_ticks();
         let refs = tl.zmp_refs(tl.start, dt, ticks + n + 1);
-        let rx: Vec<f64> = refs.iter().map(|p| p[0]).collect();
-        let ry: Vec<f64> = refs.iter().map(|p| p[1]).collect();
+        let shifted = |d: usize| {
+            refs.iter()
+                .enumerate()
+                .map(|(k, p)| p[d] - shift.get(k).map_or(0.0, |s| s[d]))
+                .collect::<Vec<f64>>()
+        };
+        let (rx, ry) = (shifted(0), shifted(1));
         let mut state = com;
         if let Some(u) = jerk {
             self.preview.bumpless(&mut state.x, rx[0], &rx[1..=n], u[0]);
             self.preview.bumpless(&mut state.y, ry[0], &ry[1..=n], u[1]);
         }
-        let (px, py) = (
-            self.preview.preview_terms(&rx, ticks),
-            self.preview.preview_terms(&ry, ticks),
-        );
+        // A shifted reference is curved: its sums by recursion, not by straight runs.
+        let (px, py) = if shift.is_empty() {
+            (
+                self.preview.preview_terms(&rx, ticks),
+                self.preview.preview_terms(&ry, ticks),
+            )
+        } else {
+            (
+                self.preview.preview_terms_recursive(&rx, ticks),
+                self.preview.preview_terms_recursive(&ry, ticks),
+            )
+        };
         let (px, py) = (px.unwrap_or_default(), py.unwrap_or_default());
         let mut samples = Vec::with_capacity(ticks + 1);
         let mut support = Support::default();
@@ -665,7 +758,8 @@ impl Generator {
         }
         // The preview controller walks the first step: its samples up to the second's lift.
         let until = full_tl.steps[1].lift + self.cfg.preview.period;
-        let full = self.preview_pattern_until(full_tl, start.com, start.jerk, Vec::new(), until);
+        let full =
+            self.preview_pattern_until(full_tl, start.com, start.jerk, Vec::new(), until, &[]);
         let p = &self.pendulum;
         let t_sup = self.cfg.placement.t_sup;
         let dt = self.cfg.preview.period;

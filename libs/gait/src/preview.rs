@@ -129,6 +129,12 @@ pub struct Preview {
     gx: [f64; 3],
     /// Preview gains G_p(1..=N).
     gp: Vec<f64>,
+    /// Ã_cᵀ, X(1), X(N − 1) and B̃ / (R + B̃ᵀPB̃): G_p(j) = B̃ᵀ Ã_cᵀ^(j−2) X(1) / (R + B̃ᵀPB̃)
+    /// for j ≥ 2, for the preview sums by recursion ([`Preview::preview_terms_recursive`]).
+    act: Matrix4<f64>,
+    x1: Vector4<f64>,
+    xn: Vector4<f64>,
+    bd: Vector4<f64>,
 }
 
 /// One cart (one axis) with the sum of its tracking errors.
@@ -188,11 +194,13 @@ impl Preview {
         let gx = [k[1], k[2], k[3]];
         // Ã_c = Ã − B̃ K; X(1) = −Ã_cᵀ P Ĩ; G_p(1) = −G_i; G_p(j) = B̃ᵀ X(j−1) / denom.
         let act = (at - bt * k).transpose();
-        let mut x = -(act * p.column(0));
+        let x1 = -(act * p.column(0));
+        let (mut x, mut xn) = (x1, x1);
         let mut gp = Vec::with_capacity(n);
         gp.push(-gi);
         for _ in 1..n {
             gp.push(bt.dot(&x) / denom);
+            xn = x;
             x = act * x;
         }
         if !(gi.is_finite() && gx.iter().all(|v| v.is_finite()) && gp.iter().all(|v| v.is_finite()))
@@ -211,6 +219,10 @@ impl Preview {
             gi,
             gx,
             gp,
+            act,
+            x1,
+            xn,
+            bd: bt / denom,
         })
     }
 
@@ -352,6 +364,52 @@ impl Preview {
                 sum += base * (s0[j1] - s0[j0 - 1]) + slope * (s1[j1] - s1[j0 - 1]);
             }
             out.push(sum);
+        }
+        Ok(out)
+    }
+
+    /// The preview terms of [`Preview::preview_terms`] for any reference (a curved one too) in
+    /// a few operations a tick: with W_k = Σ_{j=2..N} Ã_cᵀ^(j−2) X(1) r_{k+j}, the term is
+    /// −G_i r_{k+1} + B̃ᵀ W_k / (R + B̃ᵀPB̃), and W_k = X(1) r_{k+2} + Ã_cᵀ (W_{k+1} − X(N−1)
+    /// r_{k+N+1}), run backward from the last tick (Ã_c is stable: rounding dies out).
+    pub fn preview_terms_recursive(
+        &self,
+        reference: &[f64],
+        ticks: usize,
+    ) -> Result<Vec<f64>, GaitError> {
+        let n = self.gp.len();
+        if reference.len() < ticks + n {
+            return Err(GaitError::Parameter(format!(
+                "preview control: {} references for {ticks} ticks and a horizon of {n}",
+                reference.len()
+            )));
+        }
+        if reference[..ticks + n].iter().any(|v| !v.is_finite()) {
+            return Err(GaitError::Parameter(
+                "preview control: a reference that is not finite".into(),
+            ));
+        }
+        let mut out = vec![0.0; ticks];
+        if ticks == 0 {
+            return Ok(out);
+        }
+        let gi = self.gi;
+        if n < 2 {
+            for (k, o) in out.iter_mut().enumerate() {
+                *o = -gi * reference[k + 1];
+            }
+            return Ok(out);
+        }
+        // The last tick's W by Horner's rule, then back.
+        let last = ticks - 1;
+        let mut w = self.x1 * reference[last + n];
+        for j in (2..n).rev() {
+            w = self.x1 * reference[last + j] + self.act * w;
+        }
+        out[last] = -gi * reference[last + 1] + self.bd.dot(&w);
+        for k in (0..last).rev() {
+            w = self.x1 * reference[k + 2] + self.act * (w - self.xn * reference[k + n + 1]);
+            out[k] = -gi * reference[k + 1] + self.bd.dot(&w);
         }
         Ok(out)
     }

@@ -63,9 +63,10 @@ fn preview_control_sees_at_least_the_next_three_steps() {
 }
 
 #[test]
-fn the_preview_terms_by_runs_are_the_direct_sums() {
-    // The pattern takes each tick's preview term from the reference's straight runs: the
-    // same as Σ G_p(j) p_ref,k+j, on a walk's reference (runs) and on a curve (none).
+fn the_preview_terms_by_runs_and_by_recursion_are_the_direct_sums() {
+    // The pattern takes each tick's preview term from the reference's straight runs (or, on
+    // a reference the whole body shifted, by recursion): the same as Σ G_p(j) p_ref,k+j, on
+    // a walk's reference (runs) and on a curve (none).
     let p = Preview::new(PreviewConfig::default(), 0.4, 9.80665).unwrap();
     let n = p.horizon_ticks();
     let g = common::generator(Kind::Preview);
@@ -90,6 +91,13 @@ fn the_preview_terms_by_runs_are_the_direct_sums() {
     ] {
         let ticks = reference.len() - n;
         let fast = p.preview_terms(&reference, ticks).unwrap();
+        let recursive = p.preview_terms_recursive(&reference, ticks).unwrap();
+        for (k, (f, r)) in fast.iter().zip(&recursive).enumerate() {
+            assert!(
+                (f - r).abs() < 1e-9 * (1.0 + f.abs()),
+                "tick {k}: {f} vs {r}"
+            );
+        }
         // The direct sums, through a tick from a cart at rest at 0 (its jerk is then the
         // preview term's negative plus the integral term of the first error).
         for (k, f) in fast.iter().enumerate() {
@@ -104,6 +112,8 @@ fn the_preview_terms_by_runs_are_the_direct_sums() {
         }
     }
     assert!(p.preview_terms(&[0.0; 10], 100).is_err());
+    assert!(p.preview_terms_recursive(&[0.0; 10], 100).is_err());
+    assert!(p.preview_terms_recursive(&[f64::NAN; 2000], 100).is_err());
 }
 
 #[test]
@@ -392,25 +402,48 @@ fn joints_made_a_part_at_a_time_are_the_whole_patterns_row_for_row() {
     assert_eq!(part.plan.right.velocities[..], whole.right.velocities[..n]);
 }
 
+/// The whole body's ZMP under the joint rows of a walk (worked out by the tests' own chain,
+/// [`common::whole_body_zmp`]): the worst distance from the cart-table ZMP of the same walk
+/// planned without the body, and the smallest margin in the support polygon.
+fn whole_body_against_cart_table(g: &Generator, n: usize, length: f64) -> (f64, f64) {
+    let plain = common::generator(Kind::Preview);
+    let (l, r) = standing();
+    let steps = straight(n, length, 1);
+    let cart = plain.plan(&plain.standing(0.0, l, r), &steps).unwrap();
+    let p = g.plan(&g.standing(0.0, l, r), &steps).unwrap();
+    let plan = common::archie().joints(&p).unwrap();
+    let mut worst: f64 = 0.0;
+    let mut margin = f64::INFINITY;
+    for (t, z, m) in common::whole_body_zmp(&plan, &p) {
+        let c = cart.samples[cart.index_at(t + 1e-9)].zmp;
+        worst = worst.max((z[0] - c[0]).hypot(z[1] - c[1]));
+        margin = margin.min(m);
+    }
+    (worst, margin)
+}
+
 #[test]
-fn the_multibody_zmp_agrees_with_the_cart_table_zmp() {
-    let (g, p) = walk(Kind::Preview, 8, 0.15);
-    let a = archie();
-    let plan = a.joints(&p).unwrap();
-    let mb = a.multibody_zmp(&plan, g.config().g);
-    let stride = (a.row_period / p.dt).round() as usize;
-    let worst = mb
-        .iter()
-        .enumerate()
-        .map(|(i, z)| {
-            let c = p.samples[i * stride].zmp;
-            (z[0] - c[0]).hypot(z[1] - c[1])
-        })
-        .fold(0.0, f64::max);
-    eprintln!("multibody against cart-table ZMP: worst {worst:.4} m");
-    // The cart-table model leaves out the legs' own accelerations (a swing's lift-off and
-    // landing): documented tolerance 5 cm.
-    assert!(worst < 0.05, "{worst}");
+fn the_whole_bodys_zmp_keeps_to_the_cart_table_zmp_and_a_centimetre_inside_the_soles() {
+    for (n, length) in [(8, 0.15), (6, 0.25), (4, 0.0)] {
+        let (worst, margin) =
+            whole_body_against_cart_table(&common::balanced(Kind::Preview), n, length);
+        eprintln!(
+            "{n} steps of {length} m: the whole body's ZMP at most {worst:.4} m from the \
+             cart-table ZMP, at least {margin:.4} m inside the soles"
+        );
+        assert!(
+            worst < 0.01,
+            "{n} x {length}: {worst} m from the cart-table ZMP"
+        );
+        assert!(
+            margin >= 0.01,
+            "{n} x {length}: {margin} m inside the soles"
+        );
+    }
+    // The check sees a body left out: the cart-table pattern alone, played by the same legs,
+    // puts the whole body's ZMP centimetres off.
+    let (worst, _) = whole_body_against_cart_table(&common::generator(Kind::Preview), 8, 0.15);
+    assert!(worst > 0.02, "{worst}");
 }
 
 #[test]

@@ -3,12 +3,12 @@
 //! machine), the plan walked from standing by both generators (preview control, and the foot
 //! placement with its default 5 cm limit on moving a footstep), the ZMP kept a centimetre
 //! inside the support polygon (step times stretched where needed); Archie's plans also
-//! through Archie's legs within their limits.
+//! through Archie's legs within their limits, and by preview control with his whole body
+//! under the pattern, its ZMP worked out from the joint rows.
 
 mod common;
 
 use stride_gait::pattern::{Kind, Pattern, PatternConfig};
-use stride_gait::timeline::Phase;
 
 /// The smallest margin of a pattern's cart-table ZMP in its support polygon, worked out here
 /// from the samples' COM positions alone, sharing no model with the generator: the COM's
@@ -39,36 +39,8 @@ fn margin_by_hand(p: &Pattern, cfg: &PatternConfig) -> (f64, f64) {
             s.com.x.x[0] - k * acc(a.com.x.x[0], s.com.x.x[0], b.com.x.x[0]),
             s.com.y.x[0] - k * acc(a.com.y.x[0], s.com.y.x[0], b.com.y.x[0]),
         ];
-        let mut corners = Vec::new();
-        for q in [a, s, b] {
-            let on: Vec<usize> = match q.phase {
-                Phase::Single { swing, .. } => vec![swing.other().index()],
-                Phase::Double { .. } => vec![0, 1],
-            };
-            for f in on {
-                let [x, y, _, yaw] = q.feet[f][0];
-                let (sn, cs) = yaw.sin_cos();
-                for (a, b) in [(l, w), (-l, w), (-l, -w), (l, -w)] {
-                    corners.push([x + cs * a - sn * b, y + sn * a + cs * b]);
-                }
-            }
-        }
-        let mut margin = f64::INFINITY;
-        for i in 0..corners.len() {
-            for j in 0..corners.len() {
-                let (a, b) = (corners[i], corners[j]);
-                let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-                let len = dx.hypot(dy);
-                if len < 1e-9 {
-                    continue;
-                }
-                // Inside is on the left of a → b; an edge has no corner on its right.
-                let side = |q: [f64; 2]| (dx * (q[1] - a[1]) - dy * (q[0] - a[0])) / len;
-                if corners.iter().all(|&q| side(q) >= -1e-9) {
-                    margin = margin.min(side(zmp));
-                }
-            }
-        }
+        let corners = common::ground_corners(&[a, s, b], [l, w]);
+        let margin = common::hull_margin(&corners, zmp);
         if margin < worst.0 {
             worst = (margin, s.t);
         }
@@ -82,30 +54,48 @@ fn every_shipped_scenes_plan_keeps_its_zmp_inside() {
     let archie = common::archie();
     let mut rows = Vec::new();
     for kind in [Kind::Preview, Kind::FootPlacement] {
-        let g = common::generator(kind);
+        let plain = common::generator(kind);
+        let balanced = common::balanced(kind);
         for walk in &walks {
             let Ok(w) = walk else { continue };
+            // Archie's walks by preview control carry his whole body: the ZMP checked is the
+            // whole body's under the joint rows; the others' the cart-table ZMP of the COM.
+            let whole = w.archie && kind == Kind::Preview;
+            let g = if whole { &balanced } else { &plain };
             let start = g.standing(0.0, w.feet.0, w.feet.1);
             let pat = g
                 .plan(&start, &w.steps)
                 .unwrap_or_else(|e| panic!("{kind:?}, {}: {e}", w.name));
             let (m, t) = pat.min_margin();
             assert!(m >= 0.01, "{kind:?}, {}: margin {m} at {t}", w.name);
-            let (by_hand, at) = margin_by_hand(&pat, g.config());
+            let plan = w.archie.then(|| {
+                archie
+                    .joints(&pat)
+                    .unwrap_or_else(|e| panic!("{kind:?}, {}: {e}", w.name))
+            });
+            let (by_hand, at) = match &plan {
+                Some(plan) if whole => common::whole_body_zmp(plan, &pat)
+                    .into_iter()
+                    .map(|(t, _, m)| (m, t))
+                    .fold((f64::INFINITY, 0.0), |a, b| if b.0 < a.0 { b } else { a }),
+                _ => margin_by_hand(&pat, g.config()),
+            };
             assert!(
                 by_hand >= 0.01,
-                "{kind:?}, {}: margin {by_hand} at {at} from the COM's positions ({m} by the \
-                 generator's own state)",
-                w.name
-            );
-            let stretched = common::stretched(&g, &pat, &w.steps);
-            let joints = if w.archie {
-                match archie.joints(&pat) {
-                    Ok(_) => "joints within limits".to_string(),
-                    Err(e) => panic!("{kind:?}, {}: {e}", w.name),
+                "{kind:?}, {}: margin {by_hand} at {at} from the {} ({m} by the generator's own \
+                 state)",
+                w.name,
+                if whole {
+                    "joint rows"
+                } else {
+                    "COM's positions"
                 }
-            } else {
-                "ZMP only (not Archie's plan)".to_string()
+            );
+            let stretched = common::stretched(g, &pat, &w.steps);
+            let joints = match (&plan, whole) {
+                (Some(_), true) => "joints within limits, the whole body's ZMP",
+                (Some(_), false) => "joints within limits, the cart-table ZMP",
+                (None, _) => "ZMP only (not Archie's plan)",
             };
             rows.push(format!(
                 "{kind:?}, {}: {} steps, {:.1} s, smallest margin {by_hand:.4} m ({m:.4} m by \

@@ -5,8 +5,8 @@
 //! the joints would push the other foot into the ground (by more than [`BodyConfig::takeover`]),
 //! that foot has touched down and carries the weight: it becomes the anchor, set down level on
 //! the surface under it. No dynamics: the body goes where the joints take it, so what the
-//! body reports is what the joints did, and a fall is told by the cart-table ZMP of the whole
-//! robot's centre of mass (point masses of the robot file) leaving the support polygon.
+//! body reports is what the joints did, and a fall is told by the whole body's ZMP (the point
+//! masses of the robot file, each one's acceleration fitted) leaving the support polygon.
 
 use std::collections::VecDeque;
 
@@ -159,7 +159,7 @@ pub struct State {
     pub clearance: f64,
     /// Fitted at the window's middle (`t - window / 2`): the pelvis's velocity and
     /// acceleration, m/s and m/s², its angular velocity, rad/s (world frame), the COM's
-    /// cart-table ZMP and its margin in the support polygon of then, m.
+    /// whole body's ZMP (its point masses') and its margin in the support polygon of then, m.
     pub fitted: Option<Fitted>,
 }
 
@@ -182,7 +182,8 @@ pub struct Fitted {
 
 struct Sample {
     t: f64,
-    com: V3,
+    /// The point masses (kg, world position).
+    masses: [(f64, V3); 7],
     pelvis: Pose,
     ground: f64,
     polygon: Vec<P2>,
@@ -233,6 +234,12 @@ pub fn yaw_of(p: &Pose) -> f64 {
 pub fn quaternion(p: &Pose) -> [f64; 4] {
     let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
     [q.w, q.i, q.j, q.k]
+}
+
+/// The centre of point masses.
+fn centre(masses: &[(f64, V3)]) -> V3 {
+    let total: f64 = masses.iter().map(|m| m.0).sum();
+    [0, 1, 2].map(|k| masses.iter().map(|(m, p)| m * p[k]).sum::<f64>() / total)
 }
 
 /// Least-squares quadratic through `(t, v)` about `tm`: value, slope and second derivative.
@@ -396,7 +403,9 @@ impl Body {
             // the ZMP) sees no jump that the joints did not make.
             let step = pelvis * before.inverse();
             for h in &mut self.history {
-                h.com = step.apply(&h.com);
+                for (_, p) in &mut h.masses {
+                    *p = step.apply(p);
+                }
                 h.pelvis = step * h.pelvis;
             }
             soles = self.soles(&pelvis, q);
@@ -424,7 +433,8 @@ impl Body {
             let c = self.centre(&soles[k]);
             [c[0], c[1], c[2], yaw_of(&soles[k])]
         });
-        let com = self.com(&pelvis, q);
+        let masses = self.masses(&pelvis, q);
+        let com = centre(&masses);
         let mut clearance = f64::INFINITY;
         if !t.is_nan() {
             clearance = self.collisions(&pelvis, q, world, &mut events);
@@ -444,7 +454,7 @@ impl Body {
         let anchor_ground = feet[idx(self.anchor)][2];
         self.history.push_back(Sample {
             t,
-            com,
+            masses,
             pelvis,
             ground: anchor_ground,
             polygon: support::polygon(&sole, &on),
@@ -486,28 +496,27 @@ impl Body {
         events
     }
 
-    /// The whole robot's centre of mass: the pelvis's mass at its centre, each thigh's and
-    /// shank's at its middle, each foot's at the ankle roll axis. Computed here from the robot
-    /// file, not by the gait's code: the simulated world grades the gait's patterns.
-    fn com(&self, pelvis: &Pose, q: &[Q; 2]) -> V3 {
+    /// The robot's point masses: the pelvis's at its centre, each thigh's and shank's at its
+    /// middle, each foot's at the ankle roll axis. Computed here from the robot file, not by
+    /// the gait's code: the simulated world grades the gait's patterns.
+    fn masses(&self, pelvis: &Pose, q: &[Q; 2]) -> [(f64, V3); 7] {
         let m = &self.robot.mass;
-        let mut sum = pelvis.position().map(|v| v * m.pelvis);
+        let mut out = [(m.pelvis, pelvis.position()); 7];
         for leg in [Leg::Left, Leg::Right] {
             let (_, p) = archie::fk_points(&self.robot.links, leg, &q[idx(leg)]);
             let mid = |a: &V3, b: &V3| [0, 1, 2].map(|k| (a[k] + b[k]) / 2.0);
-            for (mass, point) in [
+            for (j, (mass, point)) in [
                 (m.thigh, mid(&p[0], &p[1])),
                 (m.shank, mid(&p[1], &p[2])),
                 (m.foot, p[3]),
-            ] {
-                let w = pelvis.apply(&point);
-                for k in 0..3 {
-                    sum[k] += mass * w[k];
-                }
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                out[1 + 3 * idx(leg) + j] = (mass, pelvis.apply(&point));
             }
         }
-        let total = m.total();
-        sum.map(|v| v / total)
+        out
     }
 
     /// Reports the feet and shanks that went into an obstacle; returns their smallest
@@ -595,14 +604,24 @@ impl Body {
             let vs: Vec<f64> = self.history.iter().map(f).collect();
             quadratic(&ts, &vs, tm)
         };
-        let com = [0, 1, 2].map(|k| fit(&|s: &Sample| s.com[k]));
         let pel = [0, 1, 2].map(|k| fit(&|s: &Sample| s.pelvis.translation.vector[k]));
         let mid = self
             .history
             .iter()
             .min_by(|a, b| (a.t - tm).abs().total_cmp(&(b.t - tm).abs()))?;
-        let z = com[2][0] - mid.ground;
-        let zmp = [0, 1].map(|k| com[k][0] - z / self.cfg.g * com[k][2]);
+        // The whole body's ZMP on the ground: each point mass's position and acceleration
+        // fitted, p = Σ m (x (z̈ + g) − (z − ground) ẍ) / Σ m (z̈ + g).
+        let (mut num, mut den) = ([0.0; 2], 0.0);
+        for j in 0..mid.masses.len() {
+            let mass = mid.masses[j].0;
+            let f = [0, 1, 2].map(|k| fit(&|s: &Sample| s.masses[j].1[k]));
+            let w = mass * (f[2][2] + self.cfg.g);
+            for k in 0..2 {
+                num[k] += f[k][0] * w - mass * (f[2][0] - mid.ground) * f[k][2];
+            }
+            den += w;
+        }
+        let zmp = num.map(|v| v / den);
         // Angular velocity from the rotation across the window: R_last · R_firstᵀ.
         let dr = (last.pelvis.rotation * first.pelvis.rotation.inverse()).into_inner();
         let dt = last.t - first.t;

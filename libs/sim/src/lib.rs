@@ -4,7 +4,7 @@
 //!   the anchor, stays where it stands; the pelvis and the other foot follow from the legs'
 //!   forward kinematics; a foot that the joints would push into the ground takes over as the
 //!   anchor, set down level on the scene's surface. Each state gives the pelvis's pose, the
-//!   feet and their contacts, the whole robot's centre of mass and its cart-table ZMP, and
+//!   feet and their contacts, the whole robot's centre of mass and its whole-body ZMP, and
 //!   what went wrong: a foot or shank inside an obstacle, the ZMP outside the support polygon
 //!   (a fall), a joint at its limit.
 //! - [`hexapod`]: the hexapod's body moved kinematically from its 18 joints' true positions:

@@ -193,3 +193,150 @@ pub fn stretched(g: &Generator, pat: &stride_gait::pattern::Pattern, steps: &[Fo
         })
         .count()
 }
+
+/// Archie's gait over a generator with its whole body under the patterns (two passes).
+pub fn balanced(kind: Kind) -> Generator {
+    generator(kind).with_body(std::sync::Arc::new(archie()), 2)
+}
+
+/// The whole body's ZMP under Archie's joint rows, worked out here from the robot file and
+/// the rows alone, sharing no code with the gait: each leg's chain built joint by joint (hip
+/// yaw about z, roll about x, pitch about y, knee and ankle pitch about y, ankle roll about x;
+/// the links as the robot file gives them); the pelvis placed from where the pattern puts the
+/// stance sole (the left in double support) and that leg's chain, not from the gait's pelvis;
+/// point masses at the pelvis centre, the thighs' and shanks' middles and the ankle roll axes;
+/// accelerations by central second differences; p = Σ m (x (z̈ + g) − z ẍ) / Σ m (z̈ + g).
+/// Gives each interior row's time, ZMP, and the support polygon's margin (the soles' convex
+/// hull, brute force, on the pattern's phase at the row), and checks every foot on the ground
+/// lands where the pattern puts it (to 0.1 mm: the chain is right).
+pub fn whole_body_zmp(
+    plan: &stride_gait::archie::JointPlan,
+    pat: &stride_gait::pattern::Pattern,
+) -> Vec<(f64, [f64; 2], f64)> {
+    use nalgebra::{Rotation3, Vector3};
+    use stride_gait::timeline::Phase;
+    let r = robot();
+    let l = r.links;
+    let g = 9.80665;
+    let stride = (0.01 / pat.dt).round() as usize;
+    let axis = |a: [f64; 3], t: f64| {
+        Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::from(a)), t)
+    };
+    let (x, y, z) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+    // One leg in the pelvis frame: its mass points and its sole frame.
+    let chain = |side: f64, q: &[f64; 6]| {
+        let hip = Vector3::new(0.0, side * l.a6 / 2.0, l.d6);
+        let r1 = axis(z, q[0]) * axis(x, q[1]) * axis(y, q[2]);
+        let knee = hip + r1 * Vector3::new(0.0, side * l.d3, -l.a3);
+        let r2 = r1 * axis(y, q[3]);
+        let ankle = knee + r2 * Vector3::new(0.0, 0.0, -l.a2);
+        let r3 = r2 * axis(y, q[4]);
+        let roll = ankle + r3 * Vector3::new(0.0, 0.0, -l.a1);
+        let r4 = r3 * axis(x, q[5]);
+        let sole = roll + r4 * Vector3::new(0.0, 0.0, -l.sole);
+        ([(hip + knee) / 2.0, (knee + ankle) / 2.0, roll], (r4, sole))
+    };
+    let m = r.mass;
+    let mut bodies = Vec::new();
+    for (i, t) in plan.times.iter().enumerate() {
+        let s = &pat.samples[i * stride];
+        let legs = [
+            chain(1.0, &plan.left.positions[i]),
+            chain(-1.0, &plan.right.positions[i]),
+        ];
+        let on: Vec<usize> = match s.phase {
+            Phase::Single { swing, .. } => vec![swing.other().index()],
+            Phase::Double { .. } => vec![0, 1],
+        };
+        // Where the pattern puts a sole frame: below the ankle, its centre ahead.
+        let sole_at = |k: usize| {
+            let [fx, fy, fz, yaw] = s.feet[k][0];
+            let b = r.foot.centre_ahead;
+            (
+                axis(z, yaw),
+                Vector3::new(fx - yaw.cos() * b, fy - yaw.sin() * b, fz),
+            )
+        };
+        let (rs, ps) = sole_at(on[0]);
+        let (rl, pl) = legs[on[0]].1;
+        let rot = rs * rl.inverse();
+        let origin = ps - rot * pl;
+        let world = |p: Vector3<f64>| origin + rot * p;
+        for &k in &on {
+            let (_, p) = sole_at(k);
+            let d = (world(legs[k].1 .1) - p).norm();
+            assert!(d < 1e-4, "row {i}: sole {k} {d} m from the pattern's");
+        }
+        let mut pts = vec![(m.pelvis, world(Vector3::zeros()))];
+        for leg in &legs {
+            for (mass, p) in [m.thigh, m.shank, m.foot].into_iter().zip(leg.0) {
+                pts.push((mass, world(p)));
+            }
+        }
+        bodies.push((*t, pts, s));
+    }
+    let (len, wid) = (r.foot.length / 2.0, r.foot.width / 2.0);
+    (1..bodies.len().saturating_sub(1))
+        .map(|i| {
+            let (t0, t1, t2) = (bodies[i - 1].0, bodies[i].0, bodies[i + 1].0);
+            let (h1, h2) = (t1 - t0, t2 - t1);
+            let (mut nx, mut ny, mut den) = (0.0, 0.0, 0.0);
+            for (k, &(mass, p)) in bodies[i].1.iter().enumerate() {
+                let (a, b) = (bodies[i - 1].1[k].1, bodies[i + 1].1[k].1);
+                let acc = 2.0 * ((b - p) / h2 - (p - a) / h1) / (h1 + h2);
+                let w = mass * (acc.z + g);
+                nx += p.x * w - mass * p.z * acc.x;
+                ny += p.y * w - mass * p.z * acc.y;
+                den += w;
+            }
+            let zmp = [nx / den, ny / den];
+            // The soles on the ground at the row and its neighbours (the difference spans them).
+            let corners =
+                ground_corners(&[bodies[i - 1].2, bodies[i].2, bodies[i + 1].2], [len, wid]);
+            (t1, zmp, hull_margin(&corners, zmp))
+        })
+        .collect()
+}
+
+/// The corners of the soles on the ground at any of `samples` (the stance sole in single
+/// support, both in double), the soles `half` (length, width) each side of their centres.
+pub fn ground_corners(samples: &[&stride_gait::pattern::Sample], half: [f64; 2]) -> Vec<[f64; 2]> {
+    use stride_gait::timeline::Phase;
+    let [l, w] = half;
+    let mut corners = Vec::new();
+    for s in samples {
+        let on: &[usize] = match s.phase {
+            Phase::Single { swing, .. } => &[swing.other().index()][..],
+            Phase::Double { .. } => &[0, 1],
+        };
+        for &f in on {
+            let [x, y, _, yaw] = s.feet[f][0];
+            let (sn, cs) = yaw.sin_cos();
+            for (a, b) in [(l, w), (-l, w), (-l, -w), (l, -w)] {
+                corners.push([x + cs * a - sn * b, y + sn * a + cs * b]);
+            }
+        }
+    }
+    corners
+}
+
+/// A point's distance inside the convex hull of `corners` (negative outside), brute force: an
+/// edge is a pair of corners with every other corner on its inner side.
+pub fn hull_margin(corners: &[[f64; 2]], p: [f64; 2]) -> f64 {
+    let mut margin = f64::INFINITY;
+    for &a in corners {
+        for &b in corners {
+            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+            let len = dx.hypot(dy);
+            if len < 1e-9 {
+                continue;
+            }
+            // Inside is on the left of a → b; an edge has no corner on its right.
+            let side = |q: [f64; 2]| (dx * (q[1] - a[1]) - dy * (q[0] - a[0])) / len;
+            if corners.iter().all(|&q| side(q) >= -1e-9) {
+                margin = margin.min(side(p));
+            }
+        }
+    }
+    margin
+}
