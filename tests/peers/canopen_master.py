@@ -138,6 +138,20 @@ def ds402():
         c.equal(f"CiA 402 to {state}", drive.state, state)
 
 
+def bus_state():
+    """What the bus carries for a second, and whether this side's SYNC and receiving threads
+    still run: the drive gone silent, or the master's own threads stopped."""
+    seen = [0]
+    net.subscribe(0x181, lambda *_: seen.__setitem__(0, seen[0] + 1))
+    time.sleep(1.0)
+    task = getattr(getattr(net.sync, "_task", None), "_task", None)
+    thread = getattr(task, "thread", None)
+    sync = "running" if thread is not None and thread.is_alive() else f"stopped ({task!r})"
+    return (f"then {seen[0]} TPDO1s in 1 s, the SYNC task {sync}, the receiver's exception "
+            f"{getattr(net.notifier, 'exception', None)!r}, NMT {drive.nmt.state}, "
+            f"statusword {drive.tpdo_values.get(0x6041)!r}")
+
+
 def fault():
     # Profile position with a following-error window of one count: the move faults the drive.
     drive.sdo[0x6065].raw = 1
@@ -149,7 +163,10 @@ def fault():
             [hex(e.code) for e in drive.emcy.log])
     c.check("and the statusword says so", wait_for(lambda: drive.state == "FAULT", 1.0), drive.state)
     drive.sdo[0x6065].raw = 20_000
-    drive.reset_from_fault()
+    try:
+        drive.reset_from_fault()
+    except RuntimeError as e:
+        raise RuntimeError(f"{e} ({bus_state()})") from e
     c.check("a cleared fault sends the error-reset EMCY (0x0000)",
             wait_for(lambda: any(e.code == 0x0000 for e in drive.emcy.log), 1.0),
             [hex(e.code) for e in drive.emcy.log])
