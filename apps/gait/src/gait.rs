@@ -909,7 +909,19 @@ impl Gait {
             }
         }
         let (offered, msgs): (Vec<Plan>, Vec<FootstepPlanT>) = parsed.into_iter().unzip();
+        let began = std::time::Instant::now();
         let intake = ctl.take(&offered, t, stream_end);
+        let took = began.elapsed();
+        if took > std::time::Duration::from_millis(100) {
+            tracing::warn!(
+                "{} plans offered, {} taken, the walker's own change {}: {} ms to make their \
+                 patterns and joints",
+                offered.len(),
+                intake.taken,
+                intake.changed,
+                took.as_millis()
+            );
+        }
         if let Some(e) = &intake.stand_beyond {
             tracing::error!("the walker's stand is beyond the legs ({e}): the rows made go on");
         }

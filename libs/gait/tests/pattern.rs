@@ -269,6 +269,42 @@ fn a_plan_replaced_in_double_support_continues_the_com() {
     assert!(jump(&old.samples[k], &new.samples[0]) < 1e-9);
 }
 
+/// A body that counts how often its offset is asked for, and whose ZMP is the cart's.
+#[derive(Debug, Default)]
+struct Counting(std::sync::atomic::AtomicUsize);
+
+impl stride_gait::pattern::Body for Counting {
+    fn zmp_offset(&self, pat: &stride_gait::pattern::Pattern, _: f64) -> Vec<[f64; 2]> {
+        self.0.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        vec![[0.0; 2]; pat.samples.len()]
+    }
+}
+
+#[test]
+fn a_plans_step_times_are_searched_on_the_cart_table_model_before_the_whole_body_is_put_under_it() {
+    // Each try with the whole body costs three patterns and the legs' kinematics over the
+    // plan: a search of a dozen stretches held the gait's loop up for half a second under load,
+    // and the bridges' streams ran dry.
+    let mut cfg = config(Kind::Preview);
+    cfg.timing.t_min = 0.3;
+    cfg.timing.speed = 10.0;
+    cfg.timing.double_support = 0.1;
+    let body = std::sync::Arc::new(Counting::default());
+    let quick = Generator::new(cfg).unwrap().with_body(body.clone(), 2);
+    let (l, r) = standing();
+    let start = quick.standing(0.0, l, r);
+    let steps = straight(6, 0.3, 1);
+    let checked = quick.plan(&start, &steps).unwrap();
+    assert!(checked.min_margin().0 >= 0.01);
+    assert!(checked
+        .timeline
+        .steps
+        .iter()
+        .any(|s| s.land - s.start > 0.3 + 1e-9));
+    // One pattern with the body under it: three offsets.
+    assert_eq!(body.0.load(std::sync::atomic::Ordering::Relaxed), 3);
+}
+
 #[test]
 fn a_step_whose_zmp_fails_is_given_more_time_and_an_impossible_one_is_refused() {
     let g = generator(Kind::Preview);
