@@ -571,8 +571,8 @@ impl ArchieGait {
 
 impl Body for ArchieGait {
     /// Every row's point masses placed as the joints would put them ([`ArchieGait::place`],
-    /// unchecked against the joints' limits), their accelerations by second differences (the
-    /// end rows' those of their neighbours), and the whole body's ZMP
+    /// unchecked against the joints' limits), their accelerations by second differences
+    /// (one-sided, second order, at the end rows), and the whole body's ZMP
     /// p = Σ m (x (z̈ + g) − z ẍ) / Σ m (z̈ + g) (the links' own rotational inertia left out),
     /// less the cart-table ZMP, taken linearly between rows to the samples. The rows here are
     /// 20 ms apart ([`OFFSET_PERIOD`]). Rows stop at the first the legs cannot take (the
@@ -591,26 +591,33 @@ impl Body for ArchieGait {
             rows.push((k, self.point_masses(&pelvis, &points)));
         }
         let n = rows.len();
-        if n < 3 {
+        if n < 4 {
             return out;
         }
         let mut at_rows = Vec::with_capacity(n);
-        for i in 0..n {
-            let c = i.clamp(1, n - 2);
-            let t = |r: usize| pat.samples[rows[r].0].t;
-            let (h1, h2) = (t(c) - t(c - 1), t(c + 1) - t(c));
+        // Second differences, second-order one-sided at the ends (the rows are evenly
+        // spaced): a pattern that starts mid-walk starts in motion.
+        let h = pat.samples[rows[1].0].t - pat.samples[rows[0].0].t;
+        let at = |r: usize, m: usize, d: usize| rows[r].1[m].1[d];
+        for (i, (k, masses)) in rows.iter().enumerate() {
             let (mut num_x, mut num_y, mut den) = (0.0, 0.0, 0.0);
-            for (m, &(mass, p)) in rows[i].1.iter().enumerate() {
-                let (a, b, q) = (rows[c - 1].1[m].1, rows[c + 1].1[m].1, rows[c].1[m].1);
+            for (m, &(mass, p)) in masses.iter().enumerate() {
                 let acc: V3 = std::array::from_fn(|d| {
-                    2.0 * ((b[d] - q[d]) / h2 - (q[d] - a[d]) / h1) / (h1 + h2)
+                    let v = |r: usize| at(r, m, d);
+                    if i == 0 {
+                        (2.0 * v(0) - 5.0 * v(1) + 4.0 * v(2) - v(3)) / (h * h)
+                    } else if i + 1 == n {
+                        (2.0 * v(n - 1) - 5.0 * v(n - 2) + 4.0 * v(n - 3) - v(n - 4)) / (h * h)
+                    } else {
+                        (v(i - 1) - 2.0 * v(i) + v(i + 1)) / (h * h)
+                    }
                 });
                 let w = mass * (acc[2] + g);
                 num_x += p[0] * w - mass * p[2] * acc[0];
                 num_y += p[1] * w - mass * p[2] * acc[1];
                 den += w;
             }
-            let cart = pat.samples[rows[i].0].zmp;
+            let cart = pat.samples[*k].zmp;
             at_rows.push([num_x / den - cart[0], num_y / den - cart[1]]);
         }
         let last = rows[n - 1].0;

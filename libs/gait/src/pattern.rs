@@ -913,16 +913,21 @@ impl Generator {
     /// The pattern of a plan, checked: where the ZMP's margin in the support polygon falls
     /// below the bar, the step under way then is given more time (up to T_max) and the
     /// pattern made again; a plan that still fails is refused, with the step and the margin.
-    /// With a body, the step times are first found on the cart-table model alone (a tenth of
-    /// the cost a try, and the whole body's ZMP keeps within millimetres of it), then the
-    /// whole body is put under the pattern and checked, its steps stretched further if need
-    /// be.
+    /// With a body, the plan's own step times are tried with the whole body under the
+    /// pattern; failing, the step times are searched on the cart-table model alone (a tenth
+    /// of the cost a try, and the whole body's ZMP keeps within millimetres of it), then the
+    /// whole body put under the pattern again, its steps stretched further if need be (eight
+    /// tries at most).
     pub fn plan(&self, start: &Start, steps: &[Footstep]) -> Result<Pattern, GaitError> {
         let mut durations: Vec<f64> = vec![0.0; steps.len()];
         if self.body.is_some() && self.cfg.generator == Kind::Preview {
+            // The plan's own step times first; failing, further ones searched on the cart-table
+            // model, then a few more tries with the body at most: each costs three patterns and
+            // the legs' kinematics over the whole plan, and a plan the gait waits for is late.
+            if let Ok(p) = self.retime(start, steps, &mut durations, true, 1) {
+                return Ok(p);
+            }
             self.retime(start, steps, &mut durations, false, 64)?;
-            // A few more stretches at most: each try costs three patterns and the legs'
-            // kinematics over the whole plan, and a plan the gait must wait for is late.
             return self.retime(start, steps, &mut durations, true, 8);
         }
         self.retime(start, steps, &mut durations, false, 64)
