@@ -570,8 +570,8 @@ impl ArchieGait {
 }
 
 impl Body for ArchieGait {
-    /// Every row's point masses placed as the joints would put them ([`ArchieGait::place`],
-    /// unchecked against the joints' limits), their accelerations by second differences
+    /// Every row's point masses placed as the joints would put them (the pelvis placed as for
+    /// the joint rows), their accelerations by second differences
     /// (one-sided, second order, at the end rows), and the whole body's ZMP
     /// p = Σ m (x (z̈ + g) − z ẍ) / Σ m (z̈ + g) (the links' own rotational inertia left out),
     /// less the cart-table ZMP, taken linearly between rows to the samples. The rows here are

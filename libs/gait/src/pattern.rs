@@ -11,8 +11,9 @@
 //! Every sample carries the cart-table ZMP p = x − (z_c / g) ẍ and its margin in the support
 //! polygon; with a [`Body`] ([`Generator::with_body`]), preview control takes the whole body's
 //! departure from the cart-table model off its ZMP reference (Kajita's two-stage preview
-//! control) and the samples carry the whole body's ZMP. [`plan`] stretches the time of a step whose margin falls below the bar, within
-//! [T_min, T_max], until it passes, else refuses the plan. [`Pattern::state_at`] gives the
+//! control) and the samples carry the whole body's ZMP. [`plan`] stretches the time of a step
+//! whose margin falls below the bar, within [T_min, T_max], until it passes, else refuses the
+//! plan. [`Pattern::state_at`] gives the
 //! state a new pattern starts from, so that a plan replaced mid-walk continues the COM and
 //! the swing foot without a jump.
 
@@ -385,11 +386,6 @@ impl Generator {
     pub fn with_body(mut self, body: Arc<dyn Body>, passes: usize) -> Generator {
         self.body = Some((body, passes));
         self
-    }
-
-    /// The body under the patterns and its passes, if any.
-    pub fn body(&self) -> Option<&(Arc<dyn Body>, usize)> {
-        self.body.as_ref()
     }
 
     /// The parameters.
