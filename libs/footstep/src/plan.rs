@@ -5,7 +5,7 @@ use std::sync::atomic::{AtomicBool, Ordering as AtomicOrdering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::geom::V2;
+use crate::geom::{path_length, V2};
 
 /// How a plan ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -155,6 +155,19 @@ impl Plan {
             steps: Vec::new(),
             stats,
             bound: None,
+        }
+    }
+
+    /// A path found (its cost its length), with the bound on its cost against the optimum.
+    pub fn path(path: Vec<V2>, stats: Stats, bound: Option<f64>) -> Plan {
+        Plan {
+            status: Status::Ok,
+            detail: String::new(),
+            cost: path_length(&path),
+            path,
+            steps: Vec::new(),
+            stats,
+            bound,
         }
     }
 }

@@ -427,3 +427,125 @@ fn regression_tangent_rounding() {
         assert!(!inflated.iter().any(|c| c.blocks(w[0], w[1])), "{w:?}");
     }
 }
+
+#[test]
+fn replanned_at_every_step_a_walk_round_an_obstacle_does_not_sink_into_its_margin() {
+    // The finding (KAIST's B7 walked in closed loop on a loaded machine): the gait asks for the
+    // way at every step, from where its feet will stand, and walks the plan's next step. The
+    // plan started from the centre between the feet, which, on a walk round a circle, lies on
+    // the chord between two points of the path: a few millimetres inside the margin. The
+    // start slack then narrowed the margin to it, the next centre lay inside that, and so on:
+    // the walk sank step by step until the feet passed 2 cm from the box, and the planner
+    // refused the start once it lay 5 cm deep ("the start is inside an inflated obstacle").
+    // The steps were short there too: each segment of the path had steps of its own, so the
+    // rest of a polygon side or a tangent point 1 cm ahead made a step of 1 cm.
+    // Walked here as the gait walks it: without drift, no request's start (the stance foot's
+    // point of the path) may enter the margin by more than rounding; with the feet drifting 4
+    // mm toward the box at every step near it (a state estimate's pull, the drives' lag), the
+    // margin grows back and the walk may not sink deeper than two steps' drift. No footprint on
+    // the box, the goal reached, in at most 3 steps more than the way's length in 0.2 m steps.
+    use std::time::Duration;
+    use stride_footstep::plan::Foot;
+    use stride_footstep::planner::{self, Request, Which};
+    use stride_footstep::scene::Pose;
+    let p = Params::improved();
+    let goal = v2(3.0, 0.0);
+    let cases = [
+        (0.02, 0.0),
+        (-0.05, 0.0),
+        (0.15, 0.0),
+        (0.02, 0.004),
+        (-0.05, 0.004),
+    ];
+    for (k, (y, drift)) in cases.into_iter().enumerate() {
+        // A 0.5 x 0.5 m box's bounding circle, 1.3 m ahead.
+        let box_ = Circle {
+            c: v2(1.3, y),
+            r: 0.5f64.hypot(0.5) / 2.0,
+        };
+        let scene = Scene::parse(
+            &format!(
+                "name = \"b7-{k}\"\nstart = {{ x = 0.0, y = 0.0 }}\ngoal = {{ x = 3.0, y = 0.0 \
+                 }}\n[[obstacle]]\nshape = \"circle\"\nx = 1.3\ny = {y}\nradius = {}\n",
+                box_.r
+            ),
+            std::path::Path::new("."),
+        )
+        .unwrap();
+        let rim = box_.r + p.inflation;
+        let (left, right) = Foot::standing(v2(0.0, 0.0), 0.0, 0.2);
+        // The stance foot, then the one to step next.
+        let mut feet = (left, right);
+        let mut deepest = f64::INFINITY;
+        let mut reached = false;
+        let (mut steps, mut length) = (0, 0.0);
+        for _ in 0..60 {
+            let centre = (feet.0.p + feet.1.p) * 0.5;
+            if centre.dist(goal) < 0.15 {
+                reached = true;
+                break;
+            }
+            let req = Request {
+                planner: Which::Archie,
+                faithful: false,
+                start: Pose {
+                    x: centre.x,
+                    y: centre.y,
+                    yaw: feet.0.yaw,
+                    z: 0.0,
+                },
+                goal: Pose {
+                    x: goal.x,
+                    y: goal.y,
+                    yaw: 0.0,
+                    z: 0.0,
+                },
+                horizon: None,
+                feet: Some(feet),
+                tolerance: None,
+                yaw_tolerance: None,
+                max_expansions: None,
+                corridor: None,
+                inflation: None,
+                max_step: Some(0.2),
+            };
+            let plan = planner::plan(&req, &scene, Duration::from_secs(5));
+            assert_eq!(
+                plan.status,
+                Status::Ok,
+                "{y} {drift}: {} from {centre:?}",
+                plan.detail
+            );
+            deepest = deepest.min(plan.path[0].dist(box_.c) - rim);
+            if steps == 0 {
+                length = plan.cost;
+            }
+            steps += 1;
+            let step = plan.steps[1];
+            assert_eq!(step.left, feet.1.left);
+            assert!(
+                !footprint_hits(&step, StepParams::default().foot_offset, &box_),
+                "{y}: a foot on the box: {step:?}"
+            );
+            feet = (step, feet.0);
+            let centre = (feet.0.p + feet.1.p) * 0.5;
+            if centre.dist(box_.c) < rim + 0.3 {
+                let pull = (box_.c - centre) * (drift / centre.dist(box_.c));
+                feet.0.p = feet.0.p + pull;
+                feet.1.p = feet.1.p + pull;
+            }
+        }
+        assert!(reached, "{y} {drift}: the goal not reached: {feet:?}");
+        let bar = if drift == 0.0 { -1e-3 } else { -2.0 * drift };
+        assert!(
+            deepest > bar,
+            "{y} {drift}: the walk sank {deepest} m into the margin"
+        );
+        // Steps of the planner's length, none cut short where the path bends.
+        let fewest = (length / 0.2).ceil() as usize;
+        assert!(
+            steps <= fewest + 3,
+            "{y} {drift}: {steps} steps for a way of {length} m"
+        );
+    }
+}

@@ -32,9 +32,7 @@ pub mod steps;
 use std::collections::BinaryHeap;
 use std::time::{Duration, Instant};
 
-use crate::geom::{
-    line_intersection, path_length, point_segment_distance, v2, wrap, Circle, EPS, V2,
-};
+use crate::geom::{line_intersection, point_segment_distance, v2, wrap, Circle, EPS, V2};
 use crate::plan::{Least, Plan, Stats, Status};
 
 /// Settings of Archie's planner.
@@ -49,9 +47,9 @@ pub struct Params {
     /// Largest angle of circle a waypoint of an arc covers (improved mode), rad.
     pub arc_step: f64,
     /// How far inside one inflated obstacle a start may lie and still be planned from
-    /// (improved mode), m: that obstacle's margin is narrowed to the start for the plan. A
-    /// walking robot's feet drift a few millimetres into the margin that a path hugging it
-    /// left them at; refused, it would step in place there.
+    /// (improved mode), m: that obstacle's margin is narrowed to the start for the plan, and
+    /// grows back along the way. A walking robot's feet drift a few millimetres into the
+    /// margin that a path hugging it left them at; refused, it would step in place there.
     pub start_slack: f64,
 }
 
@@ -262,19 +260,7 @@ pub fn plan_tree(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> (Plan
     }
     path.reverse();
     ids.reverse();
-    let cost = path_length(&path);
-    (
-        Plan {
-            status: Status::Ok,
-            detail: String::new(),
-            path,
-            cost,
-            steps: Vec::new(),
-            stats,
-            bound: None,
-        },
-        ids,
-    )
+    (Plan::path(path, stats, None), ids)
 }
 
 /// A point of the tangent graph: the start, the goal, or a tangent point on a circle.
@@ -599,23 +585,81 @@ fn tangent_graph_path(
 /// length as returned (waypoints outside the circles); [`exact_length`] gives the optimum.
 pub fn plan_exact(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> Plan {
     let t0 = Instant::now();
-    let mut circles = distinct(&inflate(obstacles, p.inflation), &[start, goal]);
+    let full = distinct(&inflate(obstacles, p.inflation), &[start, goal]);
+    let mut circles = full.clone();
     let mut stats = Stats::default();
     // A start a little inside one margin: that margin narrowed to it for this plan.
-    if let Some((i, c)) = narrowed_for(start, &circles, p.start_slack) {
+    let narrowed = narrowed_for(start, &circles, p.start_slack);
+    if let Some((i, c)) = narrowed {
         circles[i] = c;
     }
     if let Err(plan) = check_ends(start, goal, &circles, stats) {
         return *plan;
     }
-    let Some((seq, ways, _)) = tangent_graph_path(start, goal, &circles, TOUCH, &mut stats) else {
-        stats.search = t0.elapsed();
+    // From there along the narrowed margin, growing back to the whole one where it can.
+    let path = exact_path(start, goal, &circles, p, &mut stats).map(|way| {
+        narrowed
+            .and_then(|(i, c)| regain(&way, &full, i, c))
+            .unwrap_or(way)
+    });
+    stats.search = t0.elapsed();
+    let Some(path) = path else {
         return Plan::failed(
             Status::NoPath,
             "the goal cannot be reached around the obstacles",
             stats,
         );
     };
+    Plan::path(path, stats, Some(1.0))
+}
+
+/// How fast a way from a start inside a margin regains the whole margin: the narrowed
+/// margin grows back by this much per metre along the way (5 cm of start slack in 0.25 m).
+const REGAIN: f64 = 0.2;
+
+/// `way`, planned from a start inside circle `i`'s margin along that margin narrowed to the
+/// start (`narrowed`), with the margin growing back: each waypoint inside the whole margin
+/// (`full`) moves out from the centre as the narrowed circle grows by [`REGAIN`] per metre
+/// along the way, up to the whole margin. Replanned at every step, a walk whose feet drift
+/// into a margin is brought back out of it, where a way along the narrowed margin keeps every
+/// millimetre of drift, step after step. None if the moved way would enter another margin or
+/// come nearer the centre than the start.
+fn regain(way: &[V2], full: &[Circle], i: usize, narrowed: Circle) -> Option<Vec<V2>> {
+    let c = full[i];
+    let mut along = 0.0;
+    let mut out = Vec::with_capacity(way.len());
+    for (k, &w) in way.iter().enumerate() {
+        if k > 0 {
+            along += way[k - 1].dist(w);
+        }
+        let rho = w.dist(c.c);
+        let last = k + 1 == way.len();
+        if k == 0 || last || rho >= c.r || narrowed.r <= 0.0 {
+            out.push(w);
+            continue;
+        }
+        let grown = (narrowed.r + REGAIN * along).min(c.r);
+        out.push(c.c + (w - c.c) * (grown / narrowed.r));
+    }
+    let clear = out.windows(2).all(|s| {
+        !narrowed.blocks(s[0], s[1])
+            && full
+                .iter()
+                .enumerate()
+                .all(|(j, o)| j == i || !o.blocks(s[0], s[1]))
+    });
+    clear.then_some(out)
+}
+
+/// The exact shortest way among `circles` (inflated, [`distinct`]) as waypoints, or None.
+fn exact_path(
+    start: V2,
+    goal: V2,
+    circles: &[Circle],
+    p: &Params,
+    stats: &mut Stats,
+) -> Option<Vec<V2>> {
+    let (seq, ways, _) = tangent_graph_path(start, goal, circles, TOUCH, stats)?;
     // Straight parts as they are; an arc as the vertices of a polygon circumscribed about the
     // circle (its sides are tangent to the circle, the first and last along the straight parts
     // that arrive and leave), so the path stays outside it.
@@ -662,18 +706,7 @@ pub fn plan_exact(start: V2, goal: V2, obstacles: &[Circle], p: &Params) -> Plan
         path.push(b.p);
     }
     // Collinear points (the tangent points between straight parts and arcs) add nothing.
-    let path = simplify(&path);
-    stats.search = t0.elapsed();
-    let cost = path_length(&path);
-    Plan {
-        status: Status::Ok,
-        detail: String::new(),
-        path,
-        cost,
-        steps: Vec::new(),
-        stats,
-        bound: Some(1.0),
-    }
+    Some(simplify(&path))
 }
 
 /// Drops points that lie on the segment between their neighbours.

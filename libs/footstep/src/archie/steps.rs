@@ -4,9 +4,10 @@
 //! - [`faithful`]: the thesis's `footStepPoseComputation`, to the letter: 0.3 m steps with the
 //!   remainder on the last one, turns on the spot in two or three steps whatever their size,
 //!   a closing step after every segment, and (behind a flag) its first-foot bug.
-//! - [`improved`]: the first foot where it is, heading changes wrapped, segments cut into
-//!   equal steps (no distance lost, none overlong), small heading changes taken while walking,
-//!   large ones on the spot in steps of at most `max_yaw`.
+//! - [`improved`]: the first foot where it is, heading changes wrapped, runs of segments that
+//!   turn by at most `max_yaw` cut into equal lengths of path (no distance lost, none
+//!   overlong, no short step at a bend), each step along the chord between its two points of
+//!   the path; large heading changes on the spot in steps of at most `max_yaw`.
 
 use crate::geom::{v2, wrap, Circle, V2};
 use crate::plan::Foot;
@@ -136,13 +137,14 @@ pub fn improved_from(
     let mut heading = start_yaw;
     // The foot that steps next: odd indices of s are left feet when `odd_left`.
     let left_next = |s: &Vec<Walk>| (s.len() % 2 == 1) == odd_left;
-    for ii in 0..waypoints.len().saturating_sub(1) {
-        let seg = waypoints[ii + 1] - waypoints[ii];
-        let d = seg.norm();
-        if d < 1e-9 {
-            continue;
-        }
-        let th = seg.angle();
+    let segs: Vec<(V2, V2)> = waypoints
+        .windows(2)
+        .filter(|w| w[0].dist(w[1]) >= 1e-9)
+        .map(|w| (w[0], w[1]))
+        .collect();
+    let mut k = 0;
+    while k < segs.len() {
+        let th = (segs[k].1 - segs[k].0).angle();
         let turn = wrap(th - heading);
         if turn.abs() > p.max_yaw {
             // Stop (feet together), then turn on the spot, the foot on the turn's side leading,
@@ -153,23 +155,92 @@ pub fn improved_from(
             if (turn > 0.0) != left_next(&s) {
                 s.push((0.0, my, heading));
             }
-            let k = (turn.abs() / p.max_yaw).ceil() as usize;
-            for i in 1..=k {
-                let h = heading + turn * i as f64 / k as f64;
+            let n = (turn.abs() / p.max_yaw).ceil() as usize;
+            for i in 1..=n {
+                let h = heading + turn * i as f64 / n as f64;
                 s.extend([(0.0, my, h), (0.0, my, h)]);
             }
+            heading = th;
         }
-        // Equal steps; a small heading change is taken with the first of them.
-        let n = (d / p.max_step).ceil().max(1.0) as usize;
-        for _ in 0..n {
-            s.push((d / n as f64, my, th));
+        // A run: the segments from here on that each turn by at most max_yaw from the last.
+        let mut end = k + 1;
+        while end < segs.len() {
+            let (a, b) = (segs[end - 1], segs[end]);
+            if wrap((b.1 - b.0).angle() - (a.1 - a.0).angle()).abs() > p.max_yaw {
+                break;
+            }
+            end += 1;
         }
-        heading = th;
+        let run: Vec<V2> = std::iter::once(segs[k].0)
+            .chain(segs[k..end].iter().map(|s| s.1))
+            .collect();
+        let steps = run_steps(&run, heading, p).unwrap_or_else(|| {
+            // Turning too fast for steps cut along it: each segment in its own steps.
+            run.windows(2)
+                .flat_map(|w| {
+                    let (d, th) = ((w[1] - w[0]).norm(), (w[1] - w[0]).angle());
+                    let n = (d / p.max_step).ceil().max(1.0) as usize;
+                    std::iter::repeat_n((d / n as f64, th), n)
+                })
+                .collect()
+        });
+        for (d, th) in steps {
+            s.push((d, my, th));
+            heading = th;
+        }
+        k = end;
     }
     // Feet together at the end.
     s.push((0.0, my, heading));
     out.extend(feet(w0, &s, odd_left));
     out
+}
+
+/// Steps (advance, heading) along the polyline `run` from heading `heading`: equal lengths of
+/// path, as few as max_step allows, each taken along the chord between its ends, so the hips
+/// lie on the path and a short segment (the rest of one the walk is on, a tangent point just
+/// ahead) does not make a short step of its own. More steps where the chords would turn by
+/// more than max_yaw; None where even steps a centimetre long would.
+fn run_steps(run: &[V2], heading: f64, p: &StepParams) -> Option<Vec<(f64, f64)>> {
+    let lengths: Vec<f64> = run.windows(2).map(|w| w[0].dist(w[1])).collect();
+    let total: f64 = lengths.iter().sum();
+    let at = |s: f64| {
+        let mut s = s;
+        for (k, &l) in lengths.iter().enumerate() {
+            if s <= l || k + 1 == lengths.len() {
+                return run[k] + (run[k + 1] - run[k]) * (s / l).min(1.0);
+            }
+            s -= l;
+        }
+        run[run.len() - 1]
+    };
+    let fewest = (total / p.max_step).ceil().max(1.0) as usize;
+    let most = (total / 0.01).ceil().max(1.0) as usize;
+    let mut n = fewest;
+    while n <= most {
+        let mut steps = Vec::with_capacity(n);
+        let (mut from, mut h) = (run[0], heading);
+        let mut fits = true;
+        for j in 1..=n {
+            let to = if j == n {
+                run[run.len() - 1]
+            } else {
+                at(total * j as f64 / n as f64)
+            };
+            let th = (to - from).angle();
+            if wrap(th - h).abs() > p.max_yaw + 1e-9 {
+                fits = false;
+                break;
+            }
+            steps.push(((to - from).norm(), th));
+            (from, h) = (to, th);
+        }
+        if fits {
+            return Some(steps);
+        }
+        n = (n + 1).max(n * 5 / 4);
+    }
+    None
 }
 
 /// True when the footprint of `f` (the [`FOOT`] box around its centre) overlaps circle `c`.
