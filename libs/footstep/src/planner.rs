@@ -6,7 +6,6 @@ use std::time::Duration;
 
 use crate::archie::steps::{self, StepParams};
 use crate::archie::{self, headings, Params};
-use crate::geom::{v2, V2};
 use crate::grid::Grid;
 use crate::kaist::search as kaist_search;
 use crate::kaist::CostParams;
@@ -308,12 +307,6 @@ pub fn plan_within(
     plan
 }
 
-/// The point of an Archie path a foot stands beside: `half_stance` to its inner side.
-fn stance_hip(foot: &Foot, half_stance: f64) -> V2 {
-    let inward = if foot.left { -half_stance } else { half_stance };
-    foot.p + v2(-foot.yaw.sin(), foot.yaw.cos()) * inward
-}
-
 fn search(req: &Request, world: &Scene, budget: Duration, cancel: &Cancel) -> Plan {
     let (start, goal) = (req.start.p(), req.goal.p());
     match req.planner {
@@ -337,7 +330,7 @@ fn search(req: &Request, world: &Scene, budget: Duration, cancel: &Cancel) -> Pl
                 // on along the same path (from the centre between the feet it would start a
                 // chord's depth inside a margin it hugs, and step short of the last plan).
                 let start = match req.feet {
-                    Some((stance, _)) => stance_hip(&stance, sp.half_stance),
+                    Some((stance, _)) => steps::hip(&stance, sp.half_stance),
                     None => start,
                 };
                 let mut p = archie::plan_exact(start, goal, &circles, &params);

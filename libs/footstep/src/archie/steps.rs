@@ -64,6 +64,13 @@ fn feet(hip0: V2, s: &[Walk], odd_left: bool) -> Vec<Foot> {
     out
 }
 
+/// The point of the path a foot of these steps stands beside (its hip): `half_stance` to the
+/// foot's inner side, as [`feet`] placed it.
+pub fn hip(foot: &Foot, half_stance: f64) -> V2 {
+    let inward = if foot.left { -half_stance } else { half_stance };
+    foot.p + v2(-foot.yaw.sin(), foot.yaw.cos()) * inward
+}
+
 /// The thesis's footsteps for `waypoints` with the headings `dirs` (the heading of the segment
 /// ending at each waypoint). `first_foot_bug` keeps the thesis's `px = py + x` for the first
 /// foot.
@@ -322,6 +329,15 @@ mod tests {
         // The feet end beside the goal.
         let mid = (a.p + b.p) * 0.5;
         assert!(mid.dist(path[3]) < 1e-9, "{mid:?}");
+        // Every foot beside a point of the path.
+        for x in &f {
+            let h = hip(x, p.half_stance);
+            let off = path
+                .windows(2)
+                .map(|w| crate::geom::point_segment_distance(h, w[0], w[1]))
+                .fold(f64::INFINITY, f64::min);
+            assert!(off < 1e-9, "{x:?}: {off} m off the path");
+        }
         // No step longer than max_step.
         let hips: Vec<V2> = f.iter().map(|x| x.p).collect();
         for k in 2..hips.len() {
