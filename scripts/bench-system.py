@@ -159,8 +159,8 @@ def zenoh_bench(count):
         certs = tmp / "certs"
         subprocess.run([ROOT / "scripts" / "zenoh-certs", certs, "10.78.1.2"], check=True,
                        capture_output=True)
-        bridge_config(tmp / "robot.toml", "robot", ["tls/10.78.1.2:7447"], [], certs, "robot")
-        bridge_config(tmp / "laptop.toml", "laptop", [], ["tls/10.78.1.2:7447"], certs,
+        bridge_config(tmp / "robot.toml", "robot", ["quic/10.78.1.2:7447"], [], certs, "robot")
+        bridge_config(tmp / "laptop.toml", "laptop", [], ["quic/10.78.1.2:7447"], certs,
                       "operator")
         for host in ["robot", "laptop"]:
             procs.append(subprocess.Popen(

@@ -907,10 +907,10 @@ fn across_a_routed_link_two_zenoh_bridges_carry_the_walk_and_nothing_comes_back(
         .unwrap();
     assert!(certs.status.success(), "{certs:?}");
     let robot_cfg = bridge_config("zenoh-bridge-robot.toml", &dir, |t| {
-        t["zenoh"]["listen"] = vec![toml::Value::from("tls/10.77.1.2:7447")].into();
+        t["zenoh"]["listen"] = vec![toml::Value::from("quic/10.77.1.2:7447")].into();
     });
     let laptop_cfg = bridge_config("zenoh-bridge-operator.toml", &dir, |t| {
-        t["zenoh"]["connect"] = vec![toml::Value::from("tls/10.77.1.2:7447")].into();
+        t["zenoh"]["connect"] = vec![toml::Value::from("quic/10.77.1.2:7447")].into();
     });
     let bridge = |host: &str, cfg: &Path| {
         let mut c = split

@@ -1,5 +1,6 @@
 //! stride-zenoh-bridge between two LCM buses of one machine (two ports, no multicast between
-//! them), over Zenoh on loopback TCP.
+//! them), over Zenoh on loopback TCP and over the secured link (QUIC, certificates both
+//! ways, a password).
 
 use std::time::{Duration, Instant};
 
@@ -188,7 +189,7 @@ fn only_a_peer_with_the_links_certificate_and_password_reaches_the_robots_bus() 
     credentials(&certs, &["127.0.0.1"]);
     credentials(&other, &["127.0.0.1"]);
     let robot_url = udpm_url(7853);
-    let endpoint = "tls/127.0.0.1:7458";
+    let endpoint = "quic/127.0.0.1:7458";
     let channels = "FOOTSTEP_PLAN|STRIDE_STOP";
     let users = format!(
         "[zenoh.auth]\nusers_file = \"{}\"\n",
@@ -260,7 +261,7 @@ fn only_a_peer_with_the_links_certificate_and_password_reaches_the_robots_bus() 
         );
         drop(p);
     }
-    // Plain TCP to the TLS port: no link either.
+    // Plain TCP to the link's port: no link either.
     let tcp_url = udpm_url(7864);
     let _plain = secured(
         dir.path(),
@@ -327,6 +328,115 @@ fn only_a_peer_with_the_links_certificate_and_password_reaches_the_robots_bus() 
         got.is_some()
     });
     assert_eq!(got.as_ref(), Some(&plan), "the plan did not cross whole");
+}
+
+/// Regression: the shipped link was Zenoh's TLS over TCP, whose reader and writer share one
+/// TLS stream unguarded (eclipse-zenoh/zenoh#2557). With messages flowing both ways the link
+/// failed every second or so ("handshake not complete"), Zenoh opened a new one, and what was
+/// in flight was lost: the bench's streams stalled with most messages unacknowledged (and the
+/// walk through two routed bridges once stood still in CI, its steps not reported back). Over the link as shipped (QUIC, certificates both
+/// ways, the operator's password), a stream answered message by message crosses whole; over
+/// the old link this test stalled within the first 40 of 4000 messages.
+#[test]
+#[ignore = "multicast: scripts/test runs it in a private network namespace"]
+fn a_stream_answered_message_by_message_crosses_the_secured_link_whole() {
+    require_sandbox();
+    let dir = tempfile::tempdir().unwrap();
+    let certs = dir.path().join("certs");
+    credentials(&certs, &["127.0.0.1"]);
+    let (robot_url, op_url) = (udpm_url(7866), udpm_url(7867));
+    let endpoint = "quic/127.0.0.1:7459";
+    let channels = "UP|DOWN";
+    let users = format!(
+        "[zenoh.auth]\nusers_file = \"{}\"\n",
+        certs.join("robot-users.txt").display()
+    );
+    let password = format!(
+        "[zenoh.auth]\nuser = \"operator\"\npassword_file = \"{}\"\n",
+        certs.join("operator.password").display()
+    );
+    let _robot = secured(
+        dir.path(),
+        &Side {
+            bus: "robot",
+            url: &robot_url,
+            endpoint: ("listen", endpoint),
+            security: tls(&certs, "robot", &users),
+            channels,
+        },
+    );
+    let _operator = secured(
+        dir.path(),
+        &Side {
+            bus: "operator",
+            url: &op_url,
+            endpoint: ("connect", endpoint),
+            security: tls(&certs, "operator", &password),
+            channels,
+        },
+    );
+    let (robot, operator) = (
+        lcm::Lcm::new(&robot_url).unwrap(),
+        lcm::Lcm::new(&op_url).unwrap(),
+    );
+    assert!(
+        crosses(&operator, &robot, "UP", 20.0) && crosses(&robot, &operator, "DOWN", 20.0),
+        "the bridges never joined"
+    );
+    drop(operator);
+    // The operator streams N messages with at most 8 unanswered, the robot answers each at
+    // once (as lcm_perf's sink acknowledges): both directions busy all the time.
+    const N: u64 = 4000;
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let echo = {
+        let (stop, url) = (stop.clone(), robot_url.clone());
+        std::thread::spawn(move || {
+            let bus = lcm::Lcm::new(&url).unwrap();
+            let p = bus.publisher();
+            let sub = bus
+                .subscribe_raw("UP", move |_, data| {
+                    let _ = p.publish_raw("DOWN", data);
+                })
+                .unwrap();
+            sub.set_queue_capacity(0).unwrap();
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                let _ = bus.handle_timeout(Duration::from_millis(50));
+            }
+        })
+    };
+    drop(robot);
+    // The robot's side is listening once a message comes back.
+    let bus = lcm::Lcm::new(&op_url).unwrap();
+    let answered = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let a = answered.clone();
+    let sub = bus
+        .subscribe_raw("DOWN", move |_, data| {
+            if data.len() == 100 {
+                a.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
+        })
+        .unwrap();
+    sub.set_queue_capacity(0).unwrap();
+    let mut buf = [0u8; 100];
+    let mut sent = 0u64;
+    while answered.load(std::sync::atomic::Ordering::Relaxed) < N {
+        while sent < N && sent < answered.load(std::sync::atomic::Ordering::Relaxed) + 8 {
+            buf[..8].copy_from_slice(&sent.to_le_bytes());
+            bus.publish_raw("UP", &buf).unwrap();
+            sent += 1;
+        }
+        // A message lost on the way stalls the stream for good.
+        if !bus.handle_timeout(Duration::from_secs(2)).unwrap() {
+            break;
+        }
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    echo.join().unwrap();
+    assert_eq!(
+        answered.load(std::sync::atomic::Ordering::Relaxed),
+        N,
+        "the stream stalled over {endpoint}: a message or its answer was lost"
+    );
 }
 
 /// A bridge refuses plain TCP beyond the loopback in one line, unless told `insecure = true`.

@@ -184,6 +184,10 @@ pub fn zenoh_config(cfg: &BridgeConfig) -> anyhow::Result<zenoh::Config> {
         "open/return_conditions/connect_scouted",
         "false".into(),
     )?;
+    // A QUIC connect to a peer that is gone meets no refusal (no TCP reset): it waits out the
+    // handshake's timeout, and closing the session waits for it. Zenoh's 10 s held a stopping
+    // bridge that long; 3 s is several round trips of a poor Wi-Fi.
+    set(&mut z, "transport/unicast/open_timeout", "3000".into())?;
     Ok(z)
 }
 

@@ -56,10 +56,10 @@ pub struct ZenohConfig {
     /// "peer" or "client" (a client needs a router, e.g. zenohd, to connect to).
     #[serde(default = "peer")]
     pub mode: String,
-    /// Endpoints to listen on, e.g. "tls/0.0.0.0:7447".
+    /// Endpoints to listen on, e.g. "quic/0.0.0.0:7447".
     #[serde(default)]
     pub listen: Vec<String>,
-    /// Endpoints to connect to, e.g. "tls/10.0.1.5:7447".
+    /// Endpoints to connect to, e.g. "quic/10.0.1.5:7447".
     #[serde(default)]
     pub connect: Vec<String>,
     /// Plain TCP beyond the loopback, which anyone who reaches the port may join and publish
@@ -75,7 +75,7 @@ pub struct ZenohConfig {
 }
 
 /// The bridge's TLS identity and the authority it trusts (PEM files, relative to the
-/// configuration file's folder): `tls/` endpoints need it.
+/// configuration file's folder): `quic/` endpoints need it.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TlsConfig {
@@ -210,27 +210,35 @@ impl BridgeConfig {
         for e in self.zenoh.listen.iter().chain(&self.zenoh.connect) {
             let Some((proto, _)) = e.split_once('/') else {
                 return Err(format!(
-                    "zenoh endpoint {e:?}: PROTOCOL/ADDRESS:PORT, e.g. tls/10.0.1.5:7447"
+                    "zenoh endpoint {e:?}: PROTOCOL/ADDRESS:PORT, e.g. quic/10.0.1.5:7447"
                 ));
             };
             match proto {
-                "tls" if self.zenoh.tls.is_none() => {
+                "quic" if self.zenoh.tls.is_none() => {
                     return Err(format!(
-                        "zenoh endpoint {e:?}: TLS needs [zenoh.tls] (ca, certificate, key)"
+                        "zenoh endpoint {e:?}: QUIC needs [zenoh.tls] (ca, certificate, key)"
                     ))
                 }
-                "tls" => {}
+                "quic" => {}
+                "tls" => {
+                    return Err(format!(
+                        "zenoh endpoint {e:?}: Zenoh's TLS-over-TCP link reads and writes one \
+                         TLS stream from two threads at once (eclipse-zenoh/zenoh#2557): under \
+                         traffic both ways it fails and drops the messages in flight; use \
+                         quic/ (the same [zenoh.tls] certificates)"
+                    ))
+                }
                 "tcp" if is_loopback(e) || self.zenoh.insecure => {}
                 "tcp" => {
                     return Err(format!(
                         "zenoh endpoint {e:?} is plain TCP beyond this computer: anyone who \
-                         reaches it may join the robot's bus; use tls/ with [zenoh.tls] (see \
+                         reaches it may join the robot's bus; use quic/ with [zenoh.tls] (see \
                          the README), or say insecure = true in [zenoh]"
                     ))
                 }
                 other => {
                     return Err(format!(
-                        "zenoh endpoint {e:?}: protocol {other:?}, use tls (or tcp on the \
+                        "zenoh endpoint {e:?}: protocol {other:?}, use quic (or tcp on the \
                          loopback)"
                     ))
                 }
@@ -521,8 +529,14 @@ mod tests {
                 "say insecure = true",
             ),
             (
+                "bus = \"r\"\n[zenoh]\nlisten = [\"quic/0.0.0.0:7447\"]\n",
+                "QUIC needs [zenoh.tls]",
+            ),
+            // Zenoh's TLS-over-TCP link raced its reader and writer on one TLS stream: under
+            // a stream both ways it closed and lost the messages in flight.
+            (
                 "bus = \"r\"\n[zenoh]\nlisten = [\"tls/0.0.0.0:7447\"]\n",
-                "TLS needs [zenoh.tls]",
+                "use quic/",
             ),
             (
                 "bus = \"r\"\n[zenoh]\nlisten = [\"udp/0.0.0.0:7447\"]\n",
