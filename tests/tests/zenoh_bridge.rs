@@ -151,6 +151,39 @@ fn tls(certs: &std::path::Path, name: &str, auth: &str) -> String {
     )
 }
 
+/// The robot's bridge as shipped: listening on `endpoint` with its certificate from `certs`,
+/// letting in the users of `robot-users.txt`.
+fn robot_side(
+    dir: &std::path::Path,
+    certs: &std::path::Path,
+    url: &str,
+    endpoint: &str,
+    channels: &str,
+) -> Proc {
+    let users = format!(
+        "[zenoh.auth]\nusers_file = \"{}\"\n",
+        certs.join("robot-users.txt").display()
+    );
+    secured(
+        dir,
+        &Side {
+            bus: "robot",
+            url,
+            endpoint: ("listen", endpoint),
+            security: tls(certs, "robot", &users),
+            channels,
+        },
+    )
+}
+
+/// The [zenoh.auth] section of the operator's user with the password in `file`.
+fn password(file: &std::path::Path) -> String {
+    format!(
+        "[zenoh.auth]\nuser = \"operator\"\npassword_file = \"{}\"\n",
+        file.display()
+    )
+}
+
 /// Publishes `m` on `from` every 100 ms for `secs` s and says whether any reached `to` on
 /// `channel`.
 fn crosses(from: &lcm::Lcm, to: &lcm::Lcm, channel: &str, secs: f64) -> bool {
@@ -191,27 +224,8 @@ fn only_a_peer_with_the_links_certificate_and_password_reaches_the_robots_bus() 
     let robot_url = udpm_url(7853);
     let endpoint = "quic/127.0.0.1:7458";
     let channels = "FOOTSTEP_PLAN|STRIDE_STOP";
-    let users = format!(
-        "[zenoh.auth]\nusers_file = \"{}\"\n",
-        certs.join("robot-users.txt").display()
-    );
-    let _robot = secured(
-        dir.path(),
-        &Side {
-            bus: "robot",
-            url: &robot_url,
-            endpoint: ("listen", endpoint),
-            security: tls(&certs, "robot", &users),
-            channels,
-        },
-    );
+    let _robot = robot_side(dir.path(), &certs, &robot_url, endpoint, channels);
     let robot = lcm::Lcm::new(&robot_url).unwrap();
-    let password = |file: &std::path::Path| {
-        format!(
-            "[zenoh.auth]\nuser = \"operator\"\npassword_file = \"{}\"\n",
-            file.display()
-        )
-    };
     let wrong = dir.path().join("wrong.password");
     std::fs::write(&wrong, "not-the-password\n").unwrap();
     // The intruders, each on a bus of its own: another authority's certificate with the
@@ -347,31 +361,18 @@ fn a_stream_answered_message_by_message_crosses_the_secured_link_whole() {
     let (robot_url, op_url) = (udpm_url(7866), udpm_url(7867));
     let endpoint = "quic/127.0.0.1:7459";
     let channels = "UP|DOWN";
-    let users = format!(
-        "[zenoh.auth]\nusers_file = \"{}\"\n",
-        certs.join("robot-users.txt").display()
-    );
-    let password = format!(
-        "[zenoh.auth]\nuser = \"operator\"\npassword_file = \"{}\"\n",
-        certs.join("operator.password").display()
-    );
-    let _robot = secured(
-        dir.path(),
-        &Side {
-            bus: "robot",
-            url: &robot_url,
-            endpoint: ("listen", endpoint),
-            security: tls(&certs, "robot", &users),
-            channels,
-        },
-    );
+    let _robot = robot_side(dir.path(), &certs, &robot_url, endpoint, channels);
     let _operator = secured(
         dir.path(),
         &Side {
             bus: "operator",
             url: &op_url,
             endpoint: ("connect", endpoint),
-            security: tls(&certs, "operator", &password),
+            security: tls(
+                &certs,
+                "operator",
+                &password(&certs.join("operator.password")),
+            ),
             channels,
         },
     );
