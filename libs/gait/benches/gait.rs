@@ -155,24 +155,35 @@ fn whole_plan(rounds: usize) -> String {
         "| generator | walk | samples (200 Hz) | COM, ZMP and swings | bar: < 1 ms | Archie's joints with IK (100 Hz rows) | bar: < 5 ms | smallest ZMP margin | footsteps moved off the plan, at most |\n\
          |---|---|---|---|---|---|---|---|---|\n",
     );
-    // The third: preview control with Archie's whole body under the pattern, as the gait
-    // runs it (three patterns and three passes through the legs: no bar of its own).
+    // The third: preview control with Archie's whole body under the pattern, all of it
+    // (three patterns and three passes through the legs: no bar of its own); the fourth, as
+    // the walker takes a plan.
     let rows = [
-        (name(Kind::Preview), generator(Kind::Preview), true),
+        (name(Kind::Preview), generator(Kind::Preview), true, None),
         (
             name(Kind::FootPlacement),
             generator(Kind::FootPlacement),
             true,
+            None,
         ),
         (
             "preview control, Archie's whole body (2 passes)",
             common::balanced(Kind::Preview),
             false,
+            None,
+        ),
+        // As the walker takes a plan: it gives way to the next plan (or to its stop) at the
+        // third step, and the whole body is put under the pattern up to there.
+        (
+            "the same, played to the third step's touch-down (as the walker takes a plan)",
+            common::balanced(Kind::Preview),
+            false,
+            Some(3),
         ),
     ];
-    for (label, g, barred) in rows {
+    for (label, g, barred, played) in rows {
         let start = g.standing(0.0, l, r);
-        let pat = match g.plan(&start, &steps) {
+        let pat = match g.plan_until(&start, &steps, played) {
             Ok(p) => p,
             Err(e) => {
                 out += &format!("| {label} | refused: {e} | | | | | | | |\n");
@@ -180,7 +191,7 @@ fn whole_plan(rounds: usize) -> String {
             }
         };
         let (t, best) = spread(rounds, 1.0, || {
-            black_box(g.plan(&start, &steps).unwrap());
+            black_box(g.plan_until(&start, &steps, played).unwrap());
         });
         let joints = match archie.joints(&pat) {
             Ok(_) => {

@@ -544,17 +544,20 @@ impl Generator {
         steps: &[Footstep],
         durations: &[f64],
     ) -> Result<Pattern, GaitError> {
-        self.generate_with(start, steps, durations, true)
+        self.generate_with(start, steps, durations, true, None)
     }
 
     /// [`Generator::generate`], with the whole body under the pattern if `whole` (and the
-    /// generator has one).
+    /// generator has one): all of it, or with `played`, up to step `played`'s touch-down and
+    /// as far beyond as the preview looks back from there ([`Generator::preview_reach`]); the
+    /// rest is the cart-table model's, its ZMP and margins the cart's.
     fn generate_with(
         &self,
         start: &Start,
         steps: &[Footstep],
         durations: &[f64],
         whole: bool,
+        played: Option<i64>,
     ) -> Result<Pattern, GaitError> {
         match self.cfg.generator {
             Kind::Preview => {
@@ -562,19 +565,24 @@ impl Generator {
                 let Some((body, passes)) = self.body.as_ref().filter(|_| whole) else {
                     return Ok(self.preview_pattern(tl, start.com, start.jerk, Vec::new()));
                 };
+                let until = played
+                    .and_then(|n| tl.steps.iter().find(|s| s.footstep.number == n))
+                    .map_or(f64::INFINITY, |s| s.land + self.preview_reach());
                 let g = self.cfg.g;
-                let mut pat = self.preview_pattern(tl.clone(), start.com, start.jerk, Vec::new());
-                let mut offset = body.zmp_offset(&pat, g);
+                let (com, jerk) = (start.com, start.jerk);
+                let pass = |until: f64, shift: &[P2]| {
+                    self.preview_pattern_until(tl.clone(), com, jerk, Vec::new(), until, shift)
+                };
+                let mut pat = pass(until, &[]);
+                let (mut offset, mut shift) = (body.zmp_offset(&pat, g), Vec::new());
                 for _ in 0..*passes {
-                    pat = self.preview_pattern_until(
-                        tl.clone(),
-                        start.com,
-                        start.jerk,
-                        Vec::new(),
-                        f64::INFINITY,
-                        &offset,
-                    );
+                    shift = offset;
+                    pat = pass(until, &shift);
                     offset = body.zmp_offset(&pat, g);
+                }
+                if until < tl.end {
+                    // The same rows to `until` (the same shift), then the cart's to the end.
+                    pat = pass(f64::INFINITY, &shift);
                 }
                 self.whole_body_zmp(&mut pat, &offset);
                 Ok(pat)
@@ -915,33 +923,65 @@ impl Generator {
     /// whole body put under the pattern again, its steps stretched further if need be (eight
     /// tries at most).
     pub fn plan(&self, start: &Start, steps: &[Footstep]) -> Result<Pattern, GaitError> {
+        self.plan_until(start, steps, None)
+    }
+
+    /// [`Generator::plan`] of a pattern that plays only until step `played`'s touch-down
+    /// (None: all of it), as a walker's plan does before the next plan or its stop replaces
+    /// it: the whole body is put under the pattern, and its margins checked, up to there and
+    /// as far beyond as the preview looks back from it; the later rows, which never play, are
+    /// the cart-table model's.
+    pub fn plan_until(
+        &self,
+        start: &Start,
+        steps: &[Footstep],
+        played: Option<i64>,
+    ) -> Result<Pattern, GaitError> {
         let mut durations: Vec<f64> = vec![0.0; steps.len()];
         if self.body.is_some() && self.cfg.generator == Kind::Preview {
             // The plan's own step times first; failing, further ones searched on the cart-table
             // model, then a few more tries with the body at most: each costs three patterns and
             // the legs' kinematics over the whole plan, and a plan the gait waits for is late.
-            if let Ok(p) = self.retime(start, steps, &mut durations, true, 1) {
+            if let Ok(p) = self.retime(start, steps, &mut durations, Some(played), 1) {
                 return Ok(p);
             }
-            self.retime(start, steps, &mut durations, false, 64)?;
-            return self.retime(start, steps, &mut durations, true, 8);
+            self.retime(start, steps, &mut durations, None, 64)?;
+            return self.retime(start, steps, &mut durations, Some(played), 8);
         }
-        self.retime(start, steps, &mut durations, false, 64)
+        self.retime(start, steps, &mut durations, None, 64)
+    }
+
+    /// How far back from a row the preview control's reference still moves it, s: beyond
+    /// this lookahead its gains hold less than a thousandth of their sum (about 1.4 s at
+    /// Archie's COM height; the horizon is 6 s).
+    pub fn preview_reach(&self) -> f64 {
+        let gains = self.preview.preview_gains();
+        let total: f64 = gains.iter().map(|g| g.abs()).sum();
+        let mut tail = total;
+        for (j, g) in gains.iter().enumerate() {
+            if tail <= 1e-3 * total {
+                return j as f64 * self.cfg.preview.period;
+            }
+            tail -= g.abs();
+        }
+        gains.len() as f64 * self.cfg.preview.period
     }
 
     /// [`Generator::plan`]'s search from `durations` (left at the times of the pattern
-    /// returned), with the whole body if `whole`, `tries` patterns at most.
+    /// returned), with the whole body if `whole` (up to the step it holds, see
+    /// [`Generator::plan_until`]), `tries` patterns at most.
     fn retime(
         &self,
         start: &Start,
         steps: &[Footstep],
         durations: &mut [f64],
-        whole: bool,
+        whole: Option<Option<i64>>,
         tries: usize,
     ) -> Result<Pattern, GaitError> {
         let timing = &self.cfg.timing;
         for _ in 0..tries {
-            let pat = self.generate_with(start, steps, durations, whole)?;
+            let pat =
+                self.generate_with(start, steps, durations, whole.is_some(), whole.flatten())?;
             let bad = pat
                 .samples
                 .iter()

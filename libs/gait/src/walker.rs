@@ -372,20 +372,23 @@ impl Walker {
         steps: Vec<Footstep>,
         joints: &JointsCheck,
     ) -> Result<(), GaitError> {
-        self.replace_until(now, steps, None, joints)
+        self.replace_until(now, steps, None, false, joints)
     }
 
     /// [`Walker::replace`], the legs checked up to the touch-down of step `until` (a step
-    /// number; None: to the end).
+    /// number; None: to the end), and the whole body put under the pattern up to there too
+    /// when the pattern is `replaced` before its later rows play ([`Generator::plan_until`]).
     fn replace_until(
         &mut self,
         now: f64,
         steps: Vec<Footstep>,
         until: Option<i64>,
+        replaced: bool,
         joints: &JointsCheck,
     ) -> Result<(), GaitError> {
         let (_, start) = self.switch(now);
-        let pat = self.gen.plan(&start, &steps)?;
+        let played = until.filter(|_| replaced);
+        let pat = self.gen.plan_until(&start, &steps, played)?;
         let end = until
             .and_then(|n| {
                 let tl = &pat.timeline;
@@ -483,7 +486,9 @@ impl Walker {
         let ends_walk = at_goal && steps.len() <= walked + 1;
         steps.truncate(walked + 1 + self.previewed_steps());
         kept.extend(steps);
-        match self.replace_until(now, kept, stop_step, joints) {
+        // Unless it ends the walk, the pattern gives way before its later rows play: to the
+        // next plan, or to the stop at `stop_step` when none comes.
+        match self.replace_until(now, kept, stop_step, !ends_walk, joints) {
             Ok(()) => {
                 self.counters.taken += 1;
                 self.last_valid = now;
