@@ -176,6 +176,31 @@ fn robot_side(
     )
 }
 
+/// The operator's bridge as shipped: connecting to `endpoint` with its certificate and
+/// password from `certs`.
+fn operator_side(
+    dir: &std::path::Path,
+    certs: &std::path::Path,
+    url: &str,
+    endpoint: &str,
+    channels: &str,
+) -> Proc {
+    secured(
+        dir,
+        &Side {
+            bus: "operator",
+            url,
+            endpoint: ("connect", endpoint),
+            security: tls(
+                certs,
+                "operator",
+                &password(&certs.join("operator.password")),
+            ),
+            channels,
+        },
+    )
+}
+
 /// The [zenoh.auth] section of the operator's user with the password in `file`.
 fn password(file: &std::path::Path) -> String {
     format!(
@@ -294,20 +319,7 @@ fn only_a_peer_with_the_links_certificate_and_password_reaches_the_robots_bus() 
     );
     // The operator with the link's certificate and password: a plan crosses whole.
     let op_url = udpm_url(7865);
-    let _operator = secured(
-        dir.path(),
-        &Side {
-            bus: "operator",
-            url: &op_url,
-            endpoint: ("connect", endpoint),
-            security: tls(
-                &certs,
-                "operator",
-                &password(&certs.join("operator.password")),
-            ),
-            channels,
-        },
-    );
+    let _operator = operator_side(dir.path(), &certs, &op_url, endpoint, channels);
     let operator = lcm::Lcm::new(&op_url).unwrap();
     assert!(
         crosses(&operator, &robot, "STRIDE_STOP", 20.0),
@@ -362,20 +374,7 @@ fn a_stream_answered_message_by_message_crosses_the_secured_link_whole() {
     let endpoint = "quic/127.0.0.1:7459";
     let channels = "UP|DOWN";
     let _robot = robot_side(dir.path(), &certs, &robot_url, endpoint, channels);
-    let _operator = secured(
-        dir.path(),
-        &Side {
-            bus: "operator",
-            url: &op_url,
-            endpoint: ("connect", endpoint),
-            security: tls(
-                &certs,
-                "operator",
-                &password(&certs.join("operator.password")),
-            ),
-            channels,
-        },
-    );
+    let _operator = operator_side(dir.path(), &certs, &op_url, endpoint, channels);
     let (robot, operator) = (
         lcm::Lcm::new(&robot_url).unwrap(),
         lcm::Lcm::new(&op_url).unwrap(),
